@@ -1,0 +1,535 @@
+//! The drive: one `step` per PWM period, from a sensor sample to three duties.
+//!
+//! Order inside a period: input checks, encoder tracking, then — on their
+//! decimated periods — the position loop and the speed loop, then the current
+//! loop, so new outer references act in the same period they are computed.
+
+use crate::foc::{wrap_pi, CurrentLoop, Dq};
+use crate::foc::current_loop::RotorState;
+use crate::io::{PwmCommand, SensorSample};
+use crate::load_estimate::LoadEstimator;
+use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
+use crate::params::{ControlParams, ParamError};
+use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
+use crate::telemetry::{Mode, Telemetry};
+use core::f32::consts::PI;
+
+/// What the host (main task, simulator scenario) may ask of the drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Switch the bridge on and hold the present position.
+    Enable,
+    /// Switch the bridge off.
+    Disable,
+    /// Plan a jerk-limited move from the present command to `position_m`.
+    MoveTo { position_m: f32 },
+    /// Declare the present motor-side position to be `position_m` (homing).
+    SetHome { position_m: f32 },
+    /// Find the electrical offset (bridge must be disabled, no fault).
+    Align,
+    /// Clear latched faults whose cause is gone.
+    ClearFaults,
+    /// Shift added to the trajectory before the position loop (the error
+    /// observer's compensation), metres.
+    SetPositionShift { shift_m: f32 },
+}
+
+/// A command was taken, possibly after bounding it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandOutcome {
+    Accepted,
+    /// The target lay outside the stroke; this is the position planned instead.
+    ClampedToStroke { position_m: f32 },
+}
+
+/// Why a command was refused. Nothing changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandError {
+    /// Faults are latched; clear them first.
+    Faulted(FaultSet),
+    /// These latched faults still have their cause present.
+    CauseStillPresent(FaultSet),
+    /// The command needs the bridge enabled (Running).
+    NotRunning,
+    /// The command needs the bridge disabled.
+    NotDisabled,
+    /// A move is still in progress (moves are rest-to-rest).
+    Busy,
+    /// A NaN or infinite argument.
+    NotFinite,
+}
+
+/// Period-independent constants, computed once so the 20 kHz path does no
+/// divisions it can avoid.
+#[derive(Clone, Copy, Debug)]
+struct Derived {
+    pwm_period_s: f32,
+    position_period_s: f32,
+    current_limit_a: f32,
+    metres_per_count: f32,
+    rad_per_count: f32,
+    pole_pairs: f32,
+}
+
+impl Derived {
+    fn of(p: &ControlParams) -> Self {
+        let cpr = p.encoder.counts_per_rev as f32;
+        Self {
+            pwm_period_s: p.pwm_period_s(),
+            position_period_s: p.position_period_s(),
+            current_limit_a: p.current_limit_a(),
+            metres_per_count: p.drive_train.screw_lead_m / cpr,
+            rad_per_count: 2.0 * PI / cpr,
+            pole_pairs: p.motor.pole_pairs as f32,
+        }
+    }
+}
+
+/// The whole drive state. `step` is the only thing the ISR calls.
+#[derive(Debug)]
+pub struct Controller {
+    params: ControlParams,
+    derived: Derived,
+    mode: Mode,
+    faults: FaultSet,
+    /// Conditions present at the last step, latched or not: a fault clears
+    /// only when its condition has gone.
+    present: FaultSet,
+    tick: u32,
+    encoder: EncoderTracker,
+    current_loop: CurrentLoop,
+    speed_loop: SpeedLoop,
+    trajectory: ScurveMove,
+    move_ticks: u32,
+    position_shift_m: f32,
+    position_command_m: f32,
+    position_reference_m: f32,
+    speed_reference_rad_s: f32,
+    acceleration_reference_rad_s2: f32,
+    current_reference: Dq,
+    current_dq: Dq,
+    voltage_dq: Dq,
+    limits: LimitFlags,
+    /// A clamped MoveTo is reported until the next telemetry record is cut.
+    pending_limits: LimitFlags,
+    load: LoadEstimator,
+    align_ticks: u32,
+    bus_voltage_v: f32,
+    terminal_position_m: Option<f32>,
+    telemetry: Telemetry,
+}
+
+impl Controller {
+    /// A controller for `params`. Invalid parameters give a controller that
+    /// latches `INVALID_PARAMS` and never enables (the firmware must still
+    /// boot and log why); use [`Controller::try_new`] to get the reason.
+    pub fn new(params: ControlParams) -> Self {
+        match Self::try_new(params) {
+            Ok(c) => c,
+            Err(_) => {
+                let mut c = Self::build(ControlParams::DEFAULT);
+                c.faults = FaultSet::INVALID_PARAMS;
+                c.present = FaultSet::INVALID_PARAMS;
+                c.mode = Mode::Fault;
+                c.params = params;
+                c
+            }
+        }
+    }
+
+    /// A controller for `params`, or the first parameter that is unusable.
+    pub fn try_new(params: ControlParams) -> Result<Self, ParamError> {
+        params.validate()?;
+        Ok(Self::build(params))
+    }
+
+    fn build(params: ControlParams) -> Self {
+        Self {
+            derived: Derived::of(&params),
+            params,
+            mode: Mode::Disabled,
+            faults: FaultSet::NONE,
+            present: FaultSet::NONE,
+            tick: 0,
+            encoder: EncoderTracker::new(),
+            current_loop: CurrentLoop::new(),
+            speed_loop: SpeedLoop::new(),
+            trajectory: ScurveMove::hold(0.0),
+            move_ticks: 0,
+            position_shift_m: 0.0,
+            position_command_m: 0.0,
+            position_reference_m: 0.0,
+            speed_reference_rad_s: 0.0,
+            acceleration_reference_rad_s2: 0.0,
+            current_reference: Dq::default(),
+            current_dq: Dq::default(),
+            voltage_dq: Dq::default(),
+            limits: LimitFlags::NONE,
+            pending_limits: LimitFlags::NONE,
+            load: LoadEstimator::new(),
+            align_ticks: 0,
+            bus_voltage_v: 0.0,
+            terminal_position_m: None,
+            telemetry: Telemetry::default(),
+        }
+    }
+
+    pub fn params(&self) -> &ControlParams {
+        &self.params
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn faults(&self) -> FaultSet {
+        self.faults
+    }
+
+    /// The last telemetry record (refreshed every position period).
+    pub fn telemetry(&self) -> Telemetry {
+        self.telemetry
+    }
+
+    /// Motor-side position `L θ_m / 2π` from the tracked encoder.
+    pub fn motor_position_m(&self) -> f32 {
+        self.encoder.position_counts() * self.derived.metres_per_count
+    }
+
+    pub fn speed_rad_s(&self) -> f32 {
+        self.encoder.speed_rad_s(&self.params.encoder)
+    }
+
+    /// True while a planned move has time left.
+    pub fn move_in_progress(&self) -> bool {
+        (self.move_ticks as f32) * self.derived.position_period_s < self.trajectory.duration_s()
+    }
+
+    /// The board calls this when a sample arrived before the previous step
+    /// finished.
+    pub fn report_isr_overrun(&mut self) {
+        self.latch(FaultSet::ISR_OVERRUN);
+    }
+
+    fn latch(&mut self, f: FaultSet) {
+        self.faults.insert(f);
+        self.mode = Mode::Fault;
+    }
+
+    /// Handles one command from thread context.
+    pub fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        match cmd {
+            Command::Enable => {
+                if !self.faults.is_empty() {
+                    return Err(CommandError::Faulted(self.faults));
+                }
+                if self.mode == Mode::Running {
+                    return Ok(CommandOutcome::Accepted);
+                }
+                self.hold_here();
+                self.reset_loops();
+                self.mode = Mode::Running;
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::Disable => {
+                if self.mode != Mode::Fault {
+                    self.mode = Mode::Disabled;
+                }
+                self.reset_loops();
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::MoveTo { position_m } => {
+                if !position_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                if self.mode != Mode::Running {
+                    return Err(CommandError::NotRunning);
+                }
+                if self.move_in_progress() {
+                    return Err(CommandError::Busy);
+                }
+                let l = &self.params.limits;
+                let (target, clamped) = clamp_to_stroke(position_m, l.stroke_min_m, l.stroke_max_m);
+                self.trajectory = ScurveMove::plan(self.trajectory.end_m(), target, &self.params.trajectory);
+                self.move_ticks = 0;
+                if clamped {
+                    self.pending_limits.insert(LimitFlags::STROKE);
+                    Ok(CommandOutcome::ClampedToStroke { position_m: target })
+                } else {
+                    Ok(CommandOutcome::Accepted)
+                }
+            }
+            Command::SetHome { position_m } => {
+                if !position_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                if self.mode == Mode::Running || self.mode == Mode::Aligning {
+                    return Err(CommandError::NotDisabled);
+                }
+                let counts = position_m / self.derived.metres_per_count;
+                self.encoder.set_count(libm::roundf(counts) as i32);
+                self.hold_here();
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::Align => {
+                if !self.faults.is_empty() {
+                    return Err(CommandError::Faulted(self.faults));
+                }
+                if self.mode != Mode::Disabled {
+                    return Err(CommandError::NotDisabled);
+                }
+                self.reset_loops();
+                self.align_ticks = 0;
+                self.mode = Mode::Aligning;
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::ClearFaults => {
+                let stuck = FaultSet(self.faults.0 & self.present.0);
+                if !stuck.is_empty() {
+                    return Err(CommandError::CauseStillPresent(stuck));
+                }
+                self.faults = FaultSet::NONE;
+                if self.mode == Mode::Fault {
+                    self.mode = Mode::Disabled;
+                }
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::SetPositionShift { shift_m } => {
+                if !shift_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                self.position_shift_m = shift_m;
+                Ok(CommandOutcome::Accepted)
+            }
+        }
+    }
+
+    /// Makes the present position the trajectory's resting point.
+    fn hold_here(&mut self) {
+        let here = self.motor_position_m();
+        self.trajectory = ScurveMove::hold(here);
+        self.move_ticks = 0;
+        self.position_reference_m = here;
+        self.position_command_m = here;
+    }
+
+    fn reset_loops(&mut self) {
+        self.current_loop.reset();
+        self.speed_loop.reset();
+        self.load.reset();
+        self.current_reference = Dq::default();
+        self.speed_reference_rad_s = 0.0;
+        self.acceleration_reference_rad_s2 = 0.0;
+        self.voltage_dq = Dq::default();
+    }
+
+    /// Checks one sample; returns the conditions present now.
+    fn check_inputs(&self, s: &SensorSample) -> FaultSet {
+        let f = &self.params.faults;
+        let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
+        let [a, b, c] = s.phase_current_a;
+        let finite = a.is_finite()
+            && b.is_finite()
+            && c.is_finite()
+            && s.bus_voltage_v.is_finite()
+            && s.terminal_position_m.is_none_or(f32::is_finite)
+            && s.load_cell_force_n.is_none_or(f32::is_finite);
+        if !finite {
+            present.insert(FaultSet::NON_FINITE_INPUT);
+            return present;
+        }
+        let trip = f.overcurrent_trip_a;
+        if a.abs() > trip || b.abs() > trip || c.abs() > trip {
+            present.insert(FaultSet::OVERCURRENT);
+        }
+        if s.bus_voltage_v > f.bus_overvoltage_v {
+            present.insert(FaultSet::BUS_OVERVOLTAGE);
+        }
+        if s.bus_voltage_v < f.bus_undervoltage_v && matches!(self.mode, Mode::Running | Mode::Aligning) {
+            present.insert(FaultSet::BUS_UNDERVOLTAGE);
+        }
+        present
+    }
+
+    /// Advances one PWM period. Called from the ADC interrupt; bounded time,
+    /// no waiting, no panics.
+    pub fn step(&mut self, s: &SensorSample) -> PwmCommand {
+        self.tick = self.tick.wrapping_add(1);
+        let mut present = self.check_inputs(s);
+        if !present.contains(FaultSet::NON_FINITE_INPUT) {
+            self.bus_voltage_v = s.bus_voltage_v;
+            self.terminal_position_m = s.terminal_position_m;
+        }
+        let enc = self.encoder.update(
+            &self.params.encoder,
+            s.encoder_count,
+            self.derived.pwm_period_s,
+            self.params.faults.encoder_max_step_counts,
+        );
+        if enc.implausible_step {
+            // A jump is an event, not a standing condition: it can be cleared.
+            self.faults.insert(FaultSet::ENCODER_JUMP);
+            self.mode = Mode::Fault;
+        }
+        let position_tick = self.tick.is_multiple_of(self.params.rates.position_loop_divider);
+        if position_tick {
+            present = present.union(self.check_motion());
+        }
+        self.present = present;
+        if present.0 & !FaultSet::INVALID_PARAMS.0 != 0 {
+            self.latch(FaultSet(present.0 & !FaultSet::INVALID_PARAMS.0));
+        }
+
+        let out = match self.mode {
+            Mode::Disabled | Mode::Fault => {
+                self.hold_here();
+                self.reset_loops();
+                PwmCommand::OFF
+            }
+            Mode::Aligning => self.align_period(s),
+            Mode::Running => self.run_period(s, position_tick),
+        };
+        if position_tick {
+            self.cut_telemetry(s);
+        }
+        out
+    }
+
+    /// Following error and overtravel, evaluated at the position rate.
+    fn check_motion(&self) -> FaultSet {
+        let mut present = FaultSet::NONE;
+        let x = self.motor_position_m();
+        let l = &self.params.limits;
+        let over = self.params.faults.stroke_overtravel_m;
+        if x < l.stroke_min_m - over || x > l.stroke_max_m + over {
+            present.insert(FaultSet::STROKE_OVERTRAVEL);
+        }
+        if self.mode == Mode::Running
+            && (self.position_command_m - x).abs() > self.params.faults.position_following_error_m
+        {
+            present.insert(FaultSet::POSITION_FOLLOWING);
+        }
+        present
+    }
+
+    fn rotor_state(&self) -> RotorState {
+        let theta_m = self.encoder.angle_in_rev_rad(&self.params.encoder);
+        RotorState {
+            electrical_angle_rad: wrap_pi(self.derived.pole_pairs * theta_m + self.params.encoder.electrical_offset_rad),
+            electrical_speed_rad_s: self.derived.pole_pairs * self.speed_rad_s(),
+        }
+    }
+
+    fn run_period(&mut self, s: &SensorSample, position_tick: bool) -> PwmCommand {
+        if position_tick {
+            self.position_period(s);
+        }
+        if self.tick.is_multiple_of(self.params.rates.speed_loop_divider) {
+            let iq_max2 = self.derived.current_limit_a * self.derived.current_limit_a
+                - self.current_reference.d * self.current_reference.d;
+            let iq_max = libm::sqrtf(iq_max2.max(0.0));
+            let out = self.speed_loop.step(
+                &self.params,
+                self.speed_reference_rad_s,
+                self.acceleration_reference_rad_s2,
+                self.speed_rad_s(),
+                iq_max,
+            );
+            self.current_reference.q = out.current_q_reference_a;
+            if out.current_limited {
+                self.limits.insert(LimitFlags::CURRENT);
+            }
+        }
+        let rotor = self.rotor_state();
+        self.current_period(s, rotor)
+    }
+
+    fn current_period(&mut self, s: &SensorSample, rotor: RotorState) -> PwmCommand {
+        let out = self.current_loop.step(&self.params, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
+        self.current_dq = out.current_dq;
+        self.voltage_dq = out.voltage_dq;
+        if out.voltage_limited {
+            self.limits.insert(LimitFlags::VOLTAGE);
+        }
+        PwmCommand { duty: out.duty, enable: true }
+    }
+
+    fn position_period(&mut self, s: &SensorSample) {
+        let t = self.move_ticks as f32 * self.derived.position_period_s;
+        self.move_ticks = self.move_ticks.saturating_add(1);
+        let r = self.trajectory.sample(t);
+        self.position_reference_m = r.position_m;
+        let l = &self.params.limits;
+        let (command, clamped) = clamp_to_stroke(r.position_m + self.position_shift_m, l.stroke_min_m, l.stroke_max_m);
+        if clamped {
+            self.limits.insert(LimitFlags::STROKE);
+        }
+        self.position_command_m = command;
+        let out = position_step(&self.params, command, r.velocity_m_s, r.acceleration_m_s2, self.motor_position_m());
+        self.speed_reference_rad_s = out.speed_reference_rad_s;
+        self.acceleration_reference_rad_s2 = out.acceleration_reference_rad_s2;
+        if out.speed_limited {
+            self.limits.insert(LimitFlags::SPEED);
+        }
+        match s.load_cell_force_n {
+            Some(f) => self.load.set_measured(f),
+            None => {
+                self.load.update(
+                    &self.params,
+                    self.current_dq.q,
+                    self.acceleration_reference_rad_s2,
+                    self.derived.position_period_s,
+                );
+            }
+        }
+    }
+
+    fn align_period(&mut self, s: &SensorSample) -> PwmCommand {
+        self.align_ticks = self.align_ticks.saturating_add(1);
+        let elapsed_s = self.align_ticks as f32 * self.derived.pwm_period_s;
+        if elapsed_s >= self.params.alignment.duration_s {
+            // The rotor sits at electrical angle zero: whatever the encoder
+            // reads here is minus the offset.
+            let theta_m = self.encoder.angle_in_rev_rad(&self.params.encoder);
+            self.params.encoder.electrical_offset_rad = wrap_pi(-self.derived.pole_pairs * theta_m);
+            self.mode = Mode::Disabled;
+            self.reset_loops();
+            return PwmCommand::OFF;
+        }
+        self.current_reference = Dq { d: self.params.alignment.current_a, q: 0.0 };
+        self.current_period(s, RotorState { electrical_angle_rad: 0.0, electrical_speed_rad_s: 0.0 })
+    }
+
+    fn cut_telemetry(&mut self, s: &SensorSample) {
+        let mut limits = self.limits;
+        limits.insert(self.pending_limits);
+        self.telemetry = Telemetry {
+            time_s: self.tick as f32 * self.derived.pwm_period_s,
+            mode: self.mode,
+            position_reference_m: self.position_reference_m,
+            position_command_m: self.position_command_m,
+            motor_position_m: self.motor_position_m(),
+            motor_angle_rad: self.encoder.position_counts() * self.derived.rad_per_count,
+            speed_reference_rad_s: self.speed_reference_rad_s,
+            speed_rad_s: self.speed_rad_s(),
+            current_d_a: self.current_dq.d,
+            current_q_a: self.current_dq.q,
+            current_q_reference_a: self.current_reference.q,
+            voltage_d_v: self.voltage_dq.d,
+            voltage_q_v: self.voltage_dq.q,
+            bus_voltage_v: self.bus_voltage_v,
+            terminal_position_m: self.terminal_position_m,
+            load_force_estimate_n: match s.load_cell_force_n {
+                Some(f) if f.is_finite() => f,
+                _ => self.load.force_n(),
+            },
+            faults: self.faults,
+            limits,
+        };
+        self.limits = LimitFlags::NONE;
+        self.pending_limits = LimitFlags::NONE;
+    }
+}

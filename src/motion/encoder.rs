@@ -1,0 +1,87 @@
+//! Quadrature encoder: unwrapping the 16-bit counter and a type-2 tracking
+//! observer (PLL) that gives angle between counts and a low-noise speed.
+
+use crate::params::EncoderParams;
+use core::f32::consts::PI;
+
+/// Multi-turn position and speed estimate from raw counter readings.
+///
+/// The estimate is kept as an integer count plus a fraction in [0, 1) so that
+/// integrating tiny speed·dt increments never loses resolution far from zero,
+/// which a single f32 in radians would after a few hundred revolutions.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EncoderTracker {
+    last_raw: u16,
+    /// Unwrapped measured count, direction applied.
+    count: i32,
+    est_base: i32,
+    est_frac: f32,
+    speed_counts_s: f32,
+    started: bool,
+}
+
+/// One tracker update.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EncoderUpdate {
+    /// The counter moved further in one period than the motor can turn.
+    pub implausible_step: bool,
+}
+
+impl EncoderTracker {
+    pub const fn new() -> Self {
+        Self { last_raw: 0, count: 0, est_base: 0, est_frac: 0.0, speed_counts_s: 0.0, started: false }
+    }
+
+    /// Feeds one raw counter value taken `dt_s` after the previous one.
+    pub fn update(&mut self, p: &EncoderParams, raw: u16, dt_s: f32, max_step_counts: u32) -> EncoderUpdate {
+        if !self.started {
+            self.started = true;
+            self.last_raw = raw;
+            return EncoderUpdate { implausible_step: false };
+        }
+        // The counter wraps at 2^16; as long as it moves less than half that
+        // per period, the wrapping difference read as i16 is the true step.
+        let step = i32::from(raw.wrapping_sub(self.last_raw) as i16) * p.direction;
+        self.last_raw = raw;
+        self.count = self.count.wrapping_add(step);
+        let implausible_step = step.unsigned_abs() > max_step_counts;
+
+        self.est_frac += self.speed_counts_s * dt_s;
+        let err = (self.count.wrapping_sub(self.est_base)) as f32 - self.est_frac;
+        self.est_frac += p.pll_kp_per_s * err * dt_s;
+        self.speed_counts_s += p.pll_ki_per_s2 * err * dt_s;
+        let whole = libm::floorf(self.est_frac);
+        self.est_base = self.est_base.wrapping_add(whole as i32);
+        self.est_frac -= whole;
+        EncoderUpdate { implausible_step }
+    }
+
+    /// Redefines the present position as `count` (homing), keeping the speed.
+    pub fn set_count(&mut self, count: i32) {
+        let shift = count.wrapping_sub(self.count);
+        self.count = count;
+        self.est_base = self.est_base.wrapping_add(shift);
+    }
+
+    /// Unwrapped measured count.
+    pub fn count(&self) -> i32 {
+        self.count
+    }
+
+    /// Estimated multi-turn position in counts (with interpolation).
+    pub fn position_counts(&self) -> f32 {
+        self.est_base as f32 + self.est_frac
+    }
+
+    /// Estimated mechanical angle within one revolution, radians in [0, 2π).
+    pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
+        let cpr = p.counts_per_rev as i32;
+        let in_rev = self.est_base.rem_euclid(cpr) as f32 + self.est_frac;
+        in_rev * (2.0 * PI / p.counts_per_rev as f32)
+    }
+
+    /// Estimated mechanical speed, rad/s.
+    pub fn speed_rad_s(&self, p: &EncoderParams) -> f32 {
+        self.speed_counts_s * (2.0 * PI / p.counts_per_rev as f32)
+    }
+}

@@ -1,0 +1,84 @@
+//! Latched faults. A fault switches the bridge off at once and stays set until
+//! an explicit clear command finds its cause gone (ODrive/MCSDK habit: the
+//! operator acknowledges, the drive never re-arms by itself).
+
+/// A set of fault bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(transparent))]
+pub struct FaultSet(pub u16);
+
+impl FaultSet {
+    pub const NONE: Self = Self(0);
+    /// Instantaneous |i_phase| above `faults.overcurrent_trip_a`.
+    pub const OVERCURRENT: Self = Self(1 << 0);
+    pub const BUS_OVERVOLTAGE: Self = Self(1 << 1);
+    /// Only while the bridge is enabled: a board powered from USB with the
+    /// bus off must still be configurable.
+    pub const BUS_UNDERVOLTAGE: Self = Self(1 << 2);
+    /// The encoder moved further in one period than the motor can.
+    pub const ENCODER_JUMP: Self = Self(1 << 3);
+    /// |position command − motor-side position| above the threshold.
+    pub const POSITION_FOLLOWING: Self = Self(1 << 4);
+    /// Motor-side position beyond the stroke plus the allowed overtravel.
+    pub const STROKE_OVERTRAVEL: Self = Self(1 << 5);
+    /// NaN or infinity in a sensor sample.
+    pub const NON_FINITE_INPUT: Self = Self(1 << 6);
+    /// The parameter set failed validation; the bridge never enables.
+    pub const INVALID_PARAMS: Self = Self(1 << 7);
+    /// A new sample arrived before the previous step finished (board-reported).
+    pub const ISR_OVERRUN: Self = Self(1 << 8);
+
+    /// Every fault, with a short name for logs and reports.
+    pub const ALL: [(Self, &'static str); 9] = [
+        (Self::OVERCURRENT, "overcurrent"),
+        (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
+        (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
+        (Self::ENCODER_JUMP, "encoder_jump"),
+        (Self::POSITION_FOLLOWING, "position_following"),
+        (Self::STROKE_OVERTRAVEL, "stroke_overtravel"),
+        (Self::NON_FINITE_INPUT, "non_finite_input"),
+        (Self::INVALID_PARAMS, "invalid_params"),
+        (Self::ISR_OVERRUN, "isr_overrun"),
+    ];
+
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    pub fn insert(&mut self, other: Self) {
+        self.0 |= other.0;
+    }
+
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+
+    pub const fn bits(self) -> u16 {
+        self.0
+    }
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for FaultSet {
+    fn format(&self, f: defmt::Formatter) {
+        if self.is_empty() {
+            defmt::write!(f, "none");
+            return;
+        }
+        let mut first = true;
+        for (bit, name) in Self::ALL.iter() {
+            if self.contains(*bit) {
+                if !first {
+                    defmt::write!(f, "|");
+                }
+                defmt::write!(f, "{=str}", name);
+                first = false;
+            }
+        }
+    }
+}

@@ -1,0 +1,7 @@
+//! Faults that stop the drive and limits that bound it.
+
+pub mod faults;
+pub mod limits;
+
+pub use faults::FaultSet;
+pub use limits::{clamp_to_stroke, LimitFlags};

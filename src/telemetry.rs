@@ -1,0 +1,52 @@
+//! The telemetry record: one struct, logged by the firmware through defmt and
+//! written by the simulator as a CSV row, so both carry the same named fields.
+
+use crate::protection::{FaultSet, LimitFlags};
+
+/// What the drive is doing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Mode {
+    /// Bridge off, loops reset, encoder still tracked.
+    #[default]
+    Disabled,
+    /// Locking the rotor on a d-axis current to find the electrical offset.
+    Aligning,
+    /// Position control.
+    Running,
+    /// A fault latched; bridge off until cleared.
+    Fault,
+}
+
+/// A snapshot of the drive, refreshed every position-loop period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Telemetry {
+    /// Time since the controller was created, from its own period count.
+    pub time_s: f32,
+    pub mode: Mode,
+    /// Trajectory position (before any setpoint shift).
+    pub position_reference_m: f32,
+    /// What the position loop was asked to reach (reference + shift, clamped).
+    pub position_command_m: f32,
+    /// Motor-side position, `L θ_m / 2π`.
+    pub motor_position_m: f32,
+    /// Multi-turn mechanical motor angle.
+    pub motor_angle_rad: f32,
+    pub speed_reference_rad_s: f32,
+    pub speed_rad_s: f32,
+    pub current_d_a: f32,
+    pub current_q_a: f32,
+    pub current_q_reference_a: f32,
+    pub voltage_d_v: f32,
+    pub voltage_q_v: f32,
+    pub bus_voltage_v: f32,
+    /// Linear-scale (piston-rod) position, if a scale is fitted.
+    pub terminal_position_m: Option<f32>,
+    /// Axial force estimated from i_q (or the load cell when fitted).
+    pub load_force_estimate_n: f32,
+    pub faults: FaultSet,
+    pub limits: LimitFlags,
+}
