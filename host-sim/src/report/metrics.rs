@@ -1,0 +1,74 @@
+//! The paper run's figures, computed from a trace.
+
+use crate::scenario::{Direction, RunTrace};
+use serde::Serialize;
+
+/// Root mean square and largest magnitude of a series.
+pub fn rms_and_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut sum2, mut max, mut n) = (0.0, 0.0_f64, 0usize);
+    for v in values {
+        sum2 += v * v;
+        max = max.max(v.abs());
+        n += 1;
+    }
+    if n == 0 { (0.0, 0.0) } else { ((sum2 / n as f64).sqrt(), max) }
+}
+
+/// `summary.json` of `host-sim paper`.
+#[derive(Clone, Debug, Serialize)]
+pub struct PaperSummary {
+    /// Trajectory reference minus true motor-side position (`L θ_m/2π`), whole run.
+    pub motor_tracking_rms_um: f64,
+    pub motor_tracking_max_um: f64,
+    /// Terminal (piston-rod) position minus the trajectory reference, whole
+    /// run: what the grating scale shows the semi-closed loop leaves.
+    pub terminal_error_rms_mm: f64,
+    pub terminal_error_max_mm: f64,
+    /// Terminal minus motor-side position (deformation + lost motion).
+    pub deformation_max_mm: f64,
+    pub terminal_error_max_elongation_mm: f64,
+    pub terminal_error_max_contraction_mm: f64,
+    pub peak_phase_current_a: f64,
+    /// Largest axial force carried by the screw–nut pair.
+    pub peak_thrust_n: f64,
+    /// Simulated seconds per wall-clock second.
+    pub sim_realtime_factor: f64,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+    pub records: usize,
+    pub seed: u64,
+}
+
+pub fn paper_summary(trace: &RunTrace, seed: u64) -> PaperSummary {
+    let pairs = || trace.telemetry.iter().zip(&trace.truth);
+    let (track_rms, track_max) =
+        rms_and_max(pairs().map(|(t, x)| f64::from(t.position_reference_m) - x.motor_side_position_m));
+    let (term_rms, term_max) =
+        rms_and_max(pairs().map(|(t, x)| x.terminal_position_m - f64::from(t.position_reference_m)));
+    let (_, deform_max) = rms_and_max(trace.truth.iter().map(|x| x.deformation_m));
+    let leg_max = |d: Direction| {
+        rms_and_max(
+            pairs()
+                .zip(&trace.direction)
+                .filter(|(_, dir)| **dir == d)
+                .map(|((t, x), _)| x.terminal_position_m - f64::from(t.position_reference_m)),
+        )
+        .1
+    };
+    PaperSummary {
+        motor_tracking_rms_um: track_rms * 1e6,
+        motor_tracking_max_um: track_max * 1e6,
+        terminal_error_rms_mm: term_rms * 1e3,
+        terminal_error_max_mm: term_max * 1e3,
+        deformation_max_mm: deform_max * 1e3,
+        terminal_error_max_elongation_mm: leg_max(Direction::Elongation) * 1e3,
+        terminal_error_max_contraction_mm: leg_max(Direction::Contraction) * 1e3,
+        peak_phase_current_a: trace.truth.iter().fold(0.0, |m, x| m.max(x.phase_current_peak_a)),
+        peak_thrust_n: trace.truth.iter().fold(0.0, |m, x| m.max(x.axial_force_n.abs())),
+        sim_realtime_factor: if trace.wall_s > 0.0 { trace.simulated_s / trace.wall_s } else { f64::INFINITY },
+        simulated_s: trace.simulated_s,
+        wall_s: trace.wall_s,
+        records: trace.telemetry.len(),
+        seed,
+    }
+}

@@ -1,0 +1,99 @@
+//! The closed loop: the control core's `step` against the plant, one PWM
+//! period at a time, with the one-period PWM update delay of the real timer
+//! (duties computed from the sample at period k take effect at period k+1).
+
+use crate::plant::Plant;
+use crate::scenario::Direction;
+use servo_core::{Controller, PwmCommand, SensorSample, Telemetry};
+
+/// The plant's truth at one instant, next to what the drive believed.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct TruthRecord {
+    pub time_s: f64,
+    pub direction: Direction,
+    pub tilt_deg: f64,
+    pub external_force_n: f64,
+    /// `L θ_m / 2π` from the true motor angle.
+    pub motor_side_position_m: f64,
+    /// Piston-rod position (what an ideal grating scale reads).
+    pub terminal_position_m: f64,
+    /// Terminal minus motor-side: the rigid–flexible deformation and lost motion.
+    pub deformation_m: f64,
+    pub axial_force_n: f64,
+    pub motor_speed_rad_s: f64,
+    pub current_d_a: f64,
+    pub current_q_a: f64,
+    pub phase_current_peak_a: f64,
+}
+
+/// A controller and a plant wired together.
+pub struct ClosedLoop {
+    pub controller: Controller,
+    pub plant: Plant,
+    pending: PwmCommand,
+    periods: u64,
+    pwm_period_s: f64,
+    bus_voltage_v: f64,
+    last_sample: SensorSample,
+}
+
+impl ClosedLoop {
+    pub fn new(controller: Controller, plant: Plant, bus_voltage_v: f64) -> Self {
+        let pwm_period_s = 1.0 / f64::from(controller.params().rates.pwm_frequency_hz);
+        Self {
+            controller,
+            plant,
+            pending: PwmCommand::OFF,
+            periods: 0,
+            pwm_period_s,
+            bus_voltage_v,
+            last_sample: SensorSample::idle(0.0),
+        }
+    }
+
+    pub fn time_s(&self) -> f64 {
+        self.periods as f64 * self.pwm_period_s
+    }
+
+    pub fn periods(&self) -> u64 {
+        self.periods
+    }
+
+    pub fn set_bus_voltage_v(&mut self, v: f64) {
+        self.bus_voltage_v = v;
+    }
+
+    pub fn last_sample(&self) -> &SensorSample {
+        &self.last_sample
+    }
+
+    /// One PWM period: sample at the period start (the PWM centre), run the
+    /// core, apply last period's duties over this period.
+    pub fn step(&mut self) -> Telemetry {
+        let sample = self.plant.sample(self.bus_voltage_v);
+        let cmd = self.controller.step(&sample);
+        self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
+        self.pending = cmd;
+        self.last_sample = sample;
+        self.periods += 1;
+        self.controller.telemetry()
+    }
+
+    pub fn truth(&self, direction: Direction, tilt_deg: f64, external_force_n: f64) -> TruthRecord {
+        let s = self.plant.state();
+        TruthRecord {
+            time_s: self.time_s(),
+            direction,
+            tilt_deg,
+            external_force_n,
+            motor_side_position_m: s.motor_side_position_m,
+            terminal_position_m: s.terminal_position_m,
+            deformation_m: s.terminal_position_m - s.motor_side_position_m,
+            axial_force_n: s.axial_force_n,
+            motor_speed_rad_s: s.omega_m,
+            current_d_a: s.i_d,
+            current_q_a: s.i_q,
+            phase_current_peak_a: s.phase_currents_a.iter().fold(0.0_f64, |m, i| m.max(i.abs())),
+        }
+    }
+}
