@@ -156,7 +156,7 @@ impl Controller {
             tick: 0,
             encoder: EncoderTracker::new(),
             current_loop: CurrentLoop::new(),
-            speed_loop: SpeedLoop::new(),
+            speed_loop: SpeedLoop::new(&params),
             trajectory: ScurveMove::hold(0.0),
             move_ticks: 0,
             position_shift_m: 0.0,

@@ -15,6 +15,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod controller;
+pub mod filters;
 pub mod foc;
 pub mod io;
 pub mod load_estimate;

@@ -41,12 +41,16 @@ fn main() -> Result<()> {
 fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64) -> Result<()> {
     let rig = RigConfig::load_or_nominal(params.as_ref())?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let trace = run_stroke_cycle(&rig, &StrokeCycle::paper(seed))?;
-    let summary = metrics::paper_summary(&trace, seed);
+    let cycle = StrokeCycle::paper(seed);
+    let trace = run_stroke_cycle(&rig, &cycle)?;
+    let summary = metrics::paper_summary(&trace, seed, cycle.settle_s);
     csv_out::write_trace(&trace, &out)?;
     plots::paper_plots(&trace, &out)?;
     report::write_summary(&summary, &out)?;
     println!("{}", serde_json::to_string_pretty(&summary)?);
     println!("wrote {}/{{summary.json, telemetry.csv, plant.csv, *.png}}", out.display());
-    Ok(())
+    match trace.aborted {
+        Some(why) => anyhow::bail!("the paper run stopped early: {why} (the trace up to there is in {})", out.display()),
+        None => Ok(()),
+    }
 }

@@ -2,7 +2,7 @@
 //! period at a time, with the one-period PWM update delay of the real timer
 //! (duties computed from the sample at period k take effect at period k+1).
 
-use crate::plant::Plant;
+use crate::plant::{Plant, PlantState};
 use crate::scenario::Direction;
 use servo_core::{Controller, PwmCommand, SensorSample, Telemetry};
 
@@ -35,6 +35,9 @@ pub struct ClosedLoop {
     pwm_period_s: f64,
     bus_voltage_v: f64,
     last_sample: SensorSample,
+    /// The plant's truth at the last sampling instant (the period start),
+    /// which is the instant the telemetry describes.
+    sampled_state: PlantState,
 }
 
 impl ClosedLoop {
@@ -48,6 +51,7 @@ impl ClosedLoop {
             pwm_period_s,
             bus_voltage_v,
             last_sample: SensorSample::idle(0.0),
+            sampled_state: PlantState::default(),
         }
     }
 
@@ -70,7 +74,8 @@ impl ClosedLoop {
     /// One PWM period: sample at the period start (the PWM centre), run the
     /// core, apply last period's duties over this period.
     pub fn step(&mut self) -> Telemetry {
-        let sample = self.plant.sample(self.bus_voltage_v);
+        let sample = self.plant.sample();
+        self.sampled_state.clone_from(self.plant.state());
         let cmd = self.controller.step(&sample);
         self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
         self.pending = cmd;
@@ -79,10 +84,11 @@ impl ClosedLoop {
         self.controller.telemetry()
     }
 
+    /// The plant's truth at the instant the last telemetry record describes.
     pub fn truth(&self, direction: Direction, tilt_deg: f64, external_force_n: f64) -> TruthRecord {
-        let s = self.plant.state();
+        let s = &self.sampled_state;
         TruthRecord {
-            time_s: self.time_s(),
+            time_s: s.time_s,
             direction,
             tilt_deg,
             external_force_n,
@@ -90,10 +96,10 @@ impl ClosedLoop {
             terminal_position_m: s.terminal_position_m,
             deformation_m: s.terminal_position_m - s.motor_side_position_m,
             axial_force_n: s.axial_force_n,
-            motor_speed_rad_s: s.omega_m,
-            current_d_a: s.i_d,
-            current_q_a: s.i_q,
-            phase_current_peak_a: s.phase_currents_a.iter().fold(0.0_f64, |m, i| m.max(i.abs())),
+            motor_speed_rad_s: s.omega_m_rad_s,
+            current_d_a: s.i_d_a,
+            current_q_a: s.i_q_a,
+            phase_current_peak_a: s.phase_current_a.iter().fold(0.0_f64, |m, i| m.max(i.abs())),
         }
     }
 }

@@ -24,7 +24,7 @@ pub struct SvpwmOutput {
 /// A non-positive or non-finite bus voltage gives 50 % on every leg (zero
 /// volts) and `limited`.
 pub fn svpwm(v: AlphaBeta, bus_voltage_v: f32) -> SvpwmOutput {
-    if !(bus_voltage_v > 0.0) || !v.alpha.is_finite() || !v.beta.is_finite() {
+    if !(bus_voltage_v > 0.0) || !bus_voltage_v.is_finite() || !v.alpha.is_finite() || !v.beta.is_finite() {
         return SvpwmOutput { duty: [0.5; 3], limited: true };
     }
     let vmax = linear_limit_v(bus_voltage_v);

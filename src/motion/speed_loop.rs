@@ -1,12 +1,14 @@
 //! Speed loop: PI on the tracked encoder speed, with acceleration and viscous
 //! feedforward, producing the q-axis current reference.
 
+use crate::filters::Biquad;
 use crate::params::ControlParams;
 use crate::pi::Pi;
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SpeedLoop {
     pi: Pi,
+    torque_filter: Biquad,
 }
 
 /// One speed-loop update.
@@ -18,12 +20,14 @@ pub struct SpeedLoopOutput {
 }
 
 impl SpeedLoop {
-    pub const fn new() -> Self {
-        Self { pi: Pi::new() }
+    pub fn new(p: &ControlParams) -> Self {
+        let rate_hz = p.rates.pwm_frequency_hz / p.rates.speed_loop_divider as f32;
+        Self { pi: Pi::new(), torque_filter: Biquad::low_pass(p.torque_filter_hz, rate_hz) }
     }
 
     pub fn reset(&mut self) {
         self.pi.reset();
+        self.torque_filter.reset();
     }
 
     /// `current_limit_a` is the q-axis share of the current circle.
@@ -46,6 +50,9 @@ impl SpeedLoop {
             current_limit_a,
             p.speed_period_s(),
         );
-        SpeedLoopOutput { current_q_reference_a: out.value, current_limited: out.saturated }
+        // The filter sits after the limit, so its output can overshoot the
+        // bound only by the filter's 4 % step overshoot; clamp that too.
+        let filtered = self.torque_filter.update(out.value).clamp(-current_limit_a, current_limit_a);
+        SpeedLoopOutput { current_q_reference_a: filtered, current_limited: out.saturated }
     }
 }

@@ -63,6 +63,9 @@ pub struct RunTrace {
     pub direction: Vec<Direction>,
     pub simulated_s: f64,
     pub wall_s: f64,
+    /// Why the run stopped early (a latched fault, a stuck leg), if it did.
+    /// The trace up to that point is kept so it can be looked at.
+    pub aborted: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -78,10 +81,10 @@ enum Leg {
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
     let controller = Controller::try_new(rig.control).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut plant_params = rig.plant.clone();
-    plant_params.scale_payload(cycle.payload_scale);
+    plant_params.rod.payload_mass_kg *= cycle.payload_scale;
     let mut plant = Plant::new(plant_params, cycle.seed);
     plant.set_initial_state(0.0, 90f64.to_radians());
-    let bus = rig.plant.inverter.bus_voltage_v;
+    let bus = rig.plant.inverter.nominal_bus_voltage_v;
     let mut cl = ClosedLoop::new(controller, plant, bus);
     if let Err(e) = cl.controller.command(Command::Enable) {
         bail!("the drive refused to enable: {e:?}");
@@ -89,7 +92,8 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
 
     let divider = u64::from(rig.control.rates.position_loop_divider);
     let started = Instant::now();
-    let mut trace = RunTrace { telemetry: vec![], truth: vec![], direction: vec![], simulated_s: 0.0, wall_s: 0.0 };
+    let mut trace =
+        RunTrace { telemetry: vec![], truth: vec![], direction: vec![], simulated_s: 0.0, wall_s: 0.0, aborted: None };
     let mut leg = Leg::Settle;
     let mut leg_start_s = 0.0;
     // A generous bound: a leg that never finishes is a failure, not a hang.
@@ -112,7 +116,8 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
         trace.truth.push(cl.truth(direction, tilt_deg, 0.0));
         trace.direction.push(direction);
         if !tel.faults.is_empty() {
-            bail!("fault {:#06x} latched at t = {t:.3} s during {leg:?}", tel.faults.bits());
+            trace.aborted = Some(format!("fault {:?} latched at t = {t:.3} s during {leg:?}", tel.faults));
+            break;
         }
         let next = match leg {
             Leg::Settle if t - leg_start_s >= cycle.settle_s => Some((Leg::Elongation, Some(cycle.top_m))),
@@ -134,7 +139,8 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
             leg_start_s = t;
         }
         if t > max_s {
-            bail!("the cycle did not finish within {max_s:.1} s (stuck in {leg:?})");
+            trace.aborted = Some(format!("the cycle did not finish within {max_s:.1} s (stuck in {leg:?})"));
+            break;
         }
     }
     trace.simulated_s = cl.time_s();

@@ -1,0 +1,329 @@
+//! The whole drive (`Controller::step`) on the target: the ISR's code path.
+#![no_std]
+#![no_main]
+
+use core::f32::consts::PI;
+use firmware_tests::{check, check_close, test_main, Outcome};
+use servo_core::{
+    Command, CommandError, ControlParams, Controller, FaultSet, Mode, PwmCommand, SensorSample,
+};
+
+const BUS_V: f32 = 48.0;
+
+fn duties_ok(out: &PwmCommand) -> bool {
+    out.duty
+        .iter()
+        .all(|d| d.is_finite() && (0.0..=1.0).contains(d))
+}
+
+/// A fixed, deterministic sensor sequence around standstill: a small balanced
+/// current ripple, ±1 count of encoder jitter, a little bus ripple.
+fn synthetic_sample(k: u32) -> SensorSample {
+    let phase = 2.0 * PI * 50.0 * k as f32 / 20_000.0;
+    let ripple = 0.2f32;
+    let jitter = [0i32, 1, 0, -1][(k / 7 % 4) as usize];
+    SensorSample {
+        phase_current_a: [
+            ripple * libm::sinf(phase),
+            ripple * libm::sinf(phase - 2.0 * PI / 3.0),
+            ripple * libm::sinf(phase + 2.0 * PI / 3.0),
+        ],
+        encoder_count: (1000 + jitter) as u16,
+        bus_voltage_v: BUS_V + 0.5 * libm::sinf(0.37 * phase),
+        terminal_position_m: None,
+        load_cell_force_n: None,
+    }
+}
+
+/// Enable with the default parameters and run one second (20 000 periods) of
+/// a nominal synthetic sequence: the bridge stays on, every duty is finite
+/// and in [0, 1], and nothing faults.
+fn closed_loop_smoke_nominal_inputs() -> Outcome {
+    let mut c = Controller::new(ControlParams::DEFAULT);
+    check!(c.faults().is_empty(), "{:?}", c.faults());
+    check!(c.mode() == Mode::Disabled, "{:?}", c.mode());
+    // One sample first so the encoder tracker has its starting count.
+    let out = c.step(&synthetic_sample(0));
+    check!(!out.enable, "bridge on before Enable: {:?}", out);
+    let r = c.command(Command::Enable);
+    check!(r.is_ok(), "{:?}", r);
+    let periods = 20_000u32;
+    for k in 1..=periods {
+        let out = c.step(&synthetic_sample(k));
+        check!(duties_ok(&out), "period {}: {:?}", k, out);
+        check!(
+            out.enable,
+            "period {}: bridge off, faults {:?}",
+            k,
+            c.faults()
+        );
+        check!(c.faults().is_empty(), "period {}: {:?}", k, c.faults());
+    }
+    check!(c.mode() == Mode::Running, "{:?}", c.mode());
+    let t = c.telemetry();
+    check!(t.faults.is_empty(), "{:?}", t.faults);
+    check_close!(t.time_s, periods as f32 / 20_000.0, 1e-3);
+    check!(
+        t.motor_position_m.abs() < 1e-6,
+        "held position {} m",
+        t.motor_position_m
+    );
+    Ok(())
+}
+
+/// DESIGN §3: a fault switches the bridge off at once and stays latched
+/// until an explicit clear finds its cause gone.
+fn fault_latches_until_cleared() -> Outcome {
+    let mut c = Controller::new(ControlParams::DEFAULT);
+    let nominal = SensorSample::idle(BUS_V);
+    c.step(&nominal);
+    check!(c.command(Command::Enable).is_ok());
+    check!(c.step(&nominal).enable);
+
+    let over = SensorSample::idle(ControlParams::DEFAULT.faults.bus_overvoltage_v + 5.0);
+    let out = c.step(&over);
+    check!(!out.enable, "bridge still on during overvoltage: {:?}", out);
+    check!(duties_ok(&out), "{:?}", out);
+    check!(
+        c.faults().contains(FaultSet::BUS_OVERVOLTAGE),
+        "{:?}",
+        c.faults()
+    );
+    check!(c.mode() == Mode::Fault, "{:?}", c.mode());
+
+    // Cause present: clearing is refused, enabling too.
+    let r = c.command(Command::ClearFaults);
+    check!(
+        matches!(r, Err(CommandError::CauseStillPresent(f)) if f.contains(FaultSet::BUS_OVERVOLTAGE)),
+        "{:?}",
+        r
+    );
+    // Cause gone: still latched, bridge still off, until cleared.
+    for _ in 0..100 {
+        let out = c.step(&nominal);
+        check!(!out.enable, "re-armed by itself");
+    }
+    check!(
+        c.faults().contains(FaultSet::BUS_OVERVOLTAGE),
+        "{:?}",
+        c.faults()
+    );
+    check!(matches!(
+        c.command(Command::Enable),
+        Err(CommandError::Faulted(_))
+    ));
+    let r = c.command(Command::ClearFaults);
+    check!(r.is_ok(), "{:?}", r);
+    check!(c.faults().is_empty(), "{:?}", c.faults());
+    check!(c.command(Command::Enable).is_ok());
+    check!(c.step(&nominal).enable);
+    Ok(())
+}
+
+/// NaN in a sample: bridge off, finite duties, `NON_FINITE_INPUT` latched.
+fn non_finite_sample_turns_bridge_off() -> Outcome {
+    let mut c = Controller::new(ControlParams::DEFAULT);
+    let nominal = SensorSample::idle(BUS_V);
+    c.step(&nominal);
+    check!(c.command(Command::Enable).is_ok());
+    let mut bad = nominal;
+    bad.phase_current_a[1] = f32::NAN;
+    let out = c.step(&bad);
+    check!(!out.enable && duties_ok(&out), "{:?}", out);
+    check!(
+        c.faults().contains(FaultSet::NON_FINITE_INPUT),
+        "{:?}",
+        c.faults()
+    );
+    Ok(())
+}
+
+/// Parameters that fail validation give a controller that never enables.
+fn invalid_params_never_enable() -> Outcome {
+    let mut p = ControlParams::DEFAULT;
+    p.motor.inductance_q_h = -1.0;
+    check!(Controller::try_new(p).is_err());
+    let mut c = Controller::new(p);
+    check!(
+        c.faults().contains(FaultSet::INVALID_PARAMS),
+        "{:?}",
+        c.faults()
+    );
+    check!(c.command(Command::Enable).is_err());
+    check!(c.command(Command::ClearFaults).is_err());
+    let out = c.step(&SensorSample::idle(BUS_V));
+    check!(!out.enable && duties_ok(&out), "{:?}", out);
+    Ok(())
+}
+
+/// The 16-bit counter wraps (both ways) at 2400 rpm without an encoder-jump
+/// fault; the tracked position and speed follow the unwrapped count.
+fn encoder_wraps_without_fault() -> Outcome {
+    let p = ControlParams::DEFAULT;
+    let metres_per_count = p.drive_train.screw_lead_m / p.encoder.counts_per_rev as f32;
+    let rad_per_count = 2.0 * PI / p.encoder.counts_per_rev as f32;
+    let step = 20i32; // counts per 50 µs period: 400 000 counts/s = 2400 rpm
+    let periods = 4000i32; // 80 000 counts: the counter wraps at least once
+    for (start_raw, dir, home_m) in [(65_000u16, 1i32, 0.0f32), (100u16, -1i32, 0.25f32)] {
+        let mut c = Controller::new(p);
+        c.step(&SensorSample {
+            encoder_count: start_raw,
+            ..SensorSample::idle(BUS_V)
+        });
+        let r = c.command(Command::SetHome { position_m: home_m });
+        check!(r.is_ok(), "{:?}", r);
+        for k in 1..=periods {
+            let raw = (start_raw as i32 + dir * step * k) as u16;
+            c.step(&SensorSample {
+                encoder_count: raw,
+                ..SensorSample::idle(BUS_V)
+            });
+            check!(
+                c.faults().is_empty(),
+                "dir {}, period {}: {:?}",
+                dir,
+                k,
+                c.faults()
+            );
+        }
+        let expected_m = home_m + (dir * step * periods) as f32 * metres_per_count;
+        check_close!(
+            c.motor_position_m(),
+            expected_m,
+            2.0 * metres_per_count,
+            "dir {}",
+            dir
+        );
+        let expected_speed = (dir * step) as f32 * rad_per_count * p.rates.pwm_frequency_hz;
+        check_close!(
+            c.speed_rad_s(),
+            expected_speed,
+            1e-3 * expected_speed.abs(),
+            "dir {}",
+            dir
+        );
+    }
+    Ok(())
+}
+
+/// A rigid drive train on a PMSM: the smallest plant that closes every loop
+/// (d-q electrical model, one inertia, viscous friction, quantised encoder,
+/// the duties of one period applied during the next). Independent of the
+/// core's transforms: the formulas are written out here.
+struct RigidPlant {
+    i_d: f32,
+    i_q: f32,
+    speed_rad_s: f32,
+    angle_rad: f32,
+    p: ControlParams,
+}
+
+impl RigidPlant {
+    const SUBSTEPS: u32 = 10;
+
+    fn new(p: ControlParams) -> Self {
+        Self {
+            i_d: 0.0,
+            i_q: 0.0,
+            speed_rad_s: 0.0,
+            angle_rad: 0.0,
+            p,
+        }
+    }
+
+    fn sample(&self) -> SensorSample {
+        let pp = self.p.motor.pole_pairs as f32;
+        let (s, c) = libm::sincosf(pp * self.angle_rad);
+        let i_alpha = self.i_d * c - self.i_q * s;
+        let i_beta = self.i_d * s + self.i_q * c;
+        let h = 0.5 * libm::sqrtf(3.0);
+        let counts =
+            libm::floorf(self.angle_rad / (2.0 * PI) * self.p.encoder.counts_per_rev as f32) as i32;
+        SensorSample {
+            phase_current_a: [
+                i_alpha,
+                -0.5 * i_alpha + h * i_beta,
+                -0.5 * i_alpha - h * i_beta,
+            ],
+            encoder_count: counts as u16,
+            ..SensorSample::idle(BUS_V)
+        }
+    }
+
+    /// Advances one PWM period under `out`.
+    fn advance(&mut self, out: &PwmCommand) {
+        let m = self.p.motor;
+        let pp = m.pole_pairs as f32;
+        let j = self.p.reflected_inertia_kg_m2();
+        let b = self.p.drive_train.viscous_friction_n_m_s_rad;
+        let dt = self.p.pwm_period_s() / Self::SUBSTEPS as f32;
+        let [da, db, dc] = if out.enable { out.duty } else { [0.5; 3] };
+        let (va, vb, vc) = (da * BUS_V, db * BUS_V, dc * BUS_V);
+        let v_alpha = (2.0 * va - vb - vc) / 3.0;
+        let v_beta = (vb - vc) / libm::sqrtf(3.0);
+        for _ in 0..Self::SUBSTEPS {
+            let (s, c) = libm::sincosf(pp * self.angle_rad);
+            let v_d = v_alpha * c + v_beta * s;
+            let v_q = -v_alpha * s + v_beta * c;
+            let we = pp * self.speed_rad_s;
+            let did = (v_d - m.phase_resistance_ohm * self.i_d + we * m.inductance_q_h * self.i_q)
+                / m.inductance_d_h;
+            let diq = (v_q
+                - m.phase_resistance_ohm * self.i_q
+                - we * (m.inductance_d_h * self.i_d + m.flux_linkage_wb))
+                / m.inductance_q_h;
+            let torque = 1.5 * pp * m.flux_linkage_wb * self.i_q;
+            self.i_d += did * dt;
+            self.i_q += diq * dt;
+            self.speed_rad_s += (torque - b * self.speed_rad_s) / j * dt;
+            self.angle_rad += self.speed_rad_s * dt;
+        }
+    }
+}
+
+/// The whole cascade closed through a rigid plant: a 10 mm jerk-limited move
+/// ends within 20 µm of its target at rest, with the bridge on throughout,
+/// valid duties every period and no fault (so the following error stayed
+/// under its 5 mm trip).
+fn closed_loop_move_on_rigid_plant() -> Outcome {
+    let p = ControlParams::DEFAULT;
+    let mut plant = RigidPlant::new(p);
+    let mut c = Controller::new(p);
+    c.step(&plant.sample());
+    let home_m = 0.1;
+    let r = c.command(Command::SetHome { position_m: home_m });
+    check!(r.is_ok(), "{:?}", r);
+    check!(c.command(Command::Enable).is_ok());
+    let target_m = home_m + 0.01;
+    let r = c.command(Command::MoveTo {
+        position_m: target_m,
+    });
+    check!(r.is_ok(), "{:?}", r);
+    let periods = (0.6 * p.rates.pwm_frequency_hz) as u32;
+    let mut out = PwmCommand::OFF;
+    for k in 0..periods {
+        plant.advance(&out);
+        out = c.step(&plant.sample());
+        check!(c.faults().is_empty(), "period {}: {:?}", k, c.faults());
+        check!(out.enable && duties_ok(&out), "period {}: {:?}", k, out);
+    }
+    check!(!c.move_in_progress());
+    let plant_m = home_m + plant.angle_rad * p.metres_per_rad();
+    check_close!(plant_m, target_m, 20e-6, "plant position");
+    check_close!(c.motor_position_m(), target_m, 20e-6, "tracked position");
+    check!(
+        plant.speed_rad_s.abs() < 0.5,
+        "still moving at {} rad/s",
+        plant.speed_rad_s
+    );
+    Ok(())
+}
+
+test_main!(
+    closed_loop_smoke_nominal_inputs,
+    fault_latches_until_cleared,
+    non_finite_sample_turns_bridge_off,
+    invalid_params_never_enable,
+    encoder_wraps_without_fault,
+    closed_loop_move_on_rigid_plant,
+);

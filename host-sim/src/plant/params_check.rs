@@ -1,0 +1,283 @@
+//! Loading `[plant]` from TOML and refusing values the model cannot run with.
+//!
+//! Every refusal names the field by its dotted TOML path, e.g.
+//! `plant.motor.phase_resistance_ohm: must be > 0`, so a user can find it.
+
+use std::f64::consts::PI;
+use std::fmt;
+use std::path::Path;
+
+use super::params::PlantParams;
+
+/// A parameter that cannot be used, named by its dotted path in the TOML file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamError {
+    pub field: String,
+    pub reason: String,
+}
+
+impl ParamError {
+    fn new(field: &str, reason: impl Into<String>) -> Self {
+        Self { field: field.to_string(), reason: reason.into() }
+    }
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.field, self.reason)
+    }
+}
+
+impl std::error::Error for ParamError {}
+
+/// A parameter file that could not be read or used.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LoadError {
+    pub path: String,
+    pub error: ParamError,
+}
+
+impl fmt::Display for LoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path, self.error)
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+impl PlantParams {
+    /// Reads the `[plant]` table of a rig file (other tables, such as the
+    /// controller's `[control]`, are left to their owners) and validates it.
+    pub fn load(path: &Path) -> Result<Self, LoadError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| LoadError {
+            path: shown.clone(),
+            error: ParamError::new("plant", format!("cannot read the file: {e}")),
+        })?;
+        Self::from_toml_str(&text).map_err(|error| LoadError { path: shown, error })
+    }
+
+    /// Parses a whole rig file's text; only its `[plant]` table is used.
+    pub fn from_toml_str(text: &str) -> Result<Self, ParamError> {
+        let doc: toml::Table = toml::from_str(text)
+            .map_err(|e| ParamError::new("plant", format!("not valid TOML: {}", e.message())))?;
+        let plant = doc
+            .get("plant")
+            .cloned()
+            .ok_or_else(|| ParamError::new("plant", "missing table [plant]"))?;
+        let params: PlantParams = serde_path_to_error::deserialize(plant).map_err(|e| {
+            let path = e.path().to_string();
+            let field = if path == "." || path.is_empty() { "plant".to_string() } else { format!("plant.{path}") };
+            ParamError { field, reason: e.into_inner().to_string() }
+        })?;
+        params.validate()?;
+        Ok(params)
+    }
+
+    /// Refuses missing-in-spirit (non-finite), negative, zero-where-impossible
+    /// and inconsistent values, and a step too long for the stiffest dynamics.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let m = &self.motor;
+        if m.pole_pairs == 0 {
+            return Err(ParamError::new("plant.motor.pole_pairs", "must be >= 1"));
+        }
+        positive("plant.motor.phase_resistance_ohm", m.phase_resistance_ohm)?;
+        positive("plant.motor.inductance_d_h", m.inductance_d_h)?;
+        positive("plant.motor.inductance_q_h", m.inductance_q_h)?;
+        positive("plant.motor.flux_linkage_wb", m.flux_linkage_wb)?;
+        positive("plant.motor.rotor_inertia_kg_m2", m.rotor_inertia_kg_m2)?;
+        non_negative("plant.motor.viscous_friction_n_m_s_rad", m.viscous_friction_n_m_s_rad)?;
+
+        positive("plant.inverter.nominal_bus_voltage_v", self.inverter.nominal_bus_voltage_v)?;
+
+        let c = &self.coupling;
+        non_negative("plant.coupling.inertia_kg_m2", c.inertia_kg_m2)?;
+        positive("plant.coupling.torsional_stiffness_n_m_rad", c.torsional_stiffness_n_m_rad)?;
+        non_negative("plant.coupling.torsional_damping_n_m_s_rad", c.torsional_damping_n_m_s_rad)?;
+
+        let s = &self.screw;
+        positive("plant.screw.lead_m", s.lead_m)?;
+        positive("plant.screw.inertia_kg_m2", s.inertia_kg_m2)?;
+        non_negative("plant.screw.viscous_friction_n_m_s_rad", s.viscous_friction_n_m_s_rad)?;
+        positive("plant.screw.efficiency", s.efficiency)?;
+        if s.efficiency > 1.0 {
+            return Err(ParamError::new("plant.screw.efficiency", "must be <= 1"));
+        }
+        if s.efficiency <= 0.5 {
+            // μ = (1−η)/η ≥ 1 would make the screw self-locking, which a ball
+            // screw is not; the friction model assumes back-drivability.
+            return Err(ParamError::new("plant.screw.efficiency", "must be > 0.5 (a ball screw back-drives)"));
+        }
+        non_negative("plant.screw.preload_drag_torque_n_m", s.preload_drag_torque_n_m)?;
+        non_negative("plant.screw.nut_distance_at_zero_m", s.nut_distance_at_zero_m)?;
+
+        let r = &self.rod;
+        positive("plant.rod.nut_rod_mass_kg", r.nut_rod_mass_kg)?;
+        non_negative("plant.rod.payload_mass_kg", r.payload_mass_kg)?;
+        non_negative("plant.rod.viscous_friction_n_s_m", r.viscous_friction_n_s_m)?;
+        non_negative("plant.rod.coulomb_friction_n", r.coulomb_friction_n)?;
+        non_negative("plant.rod.static_friction_n", r.static_friction_n)?;
+        if r.static_friction_n < r.coulomb_friction_n {
+            return Err(ParamError::new("plant.rod.static_friction_n", "must be >= coulomb_friction_n"));
+        }
+        positive("plant.rod.stribeck_velocity_m_s", r.stribeck_velocity_m_s)?;
+
+        let l = &self.load;
+        non_negative("plant.load.gravity_m_s2", l.gravity_m_s2)?;
+        finite("plant.load.initial_tilt_deg", l.initial_tilt_deg)?;
+        finite("plant.load.initial_external_force_n", l.initial_external_force_n)?;
+
+        let st = &self.stroke;
+        finite("plant.stroke.initial_position_m", st.initial_position_m)?;
+        finite("plant.stroke.retracted_stop_m", st.retracted_stop_m)?;
+        finite("plant.stroke.extended_stop_m", st.extended_stop_m)?;
+        if st.extended_stop_m <= st.retracted_stop_m {
+            return Err(ParamError::new("plant.stroke.extended_stop_m", "must exceed retracted_stop_m"));
+        }
+        if st.initial_position_m <= st.retracted_stop_m || st.initial_position_m >= st.extended_stop_m {
+            return Err(ParamError::new("plant.stroke.initial_position_m", "must lie between the end stops"));
+        }
+        positive("plant.stroke.stop_stiffness_n_m", st.stop_stiffness_n_m)?;
+        non_negative("plant.stroke.stop_damping_n_s_m", st.stop_damping_n_s_m)?;
+
+        let d = &self.deformation;
+        non_negative("plant.deformation.axial_damping_n_s_m", d.axial_damping_n_s_m)?;
+        positive("plant.deformation.contact.coefficient_m_per_n2_3", d.contact.coefficient_m_per_n2_3)?;
+        // Preload keeps the contact stiffness finite at zero force.
+        positive("plant.deformation.contact.preload_n", d.contact.preload_n)?;
+        positive("plant.deformation.screw_axial.youngs_modulus_pa", d.screw_axial.youngs_modulus_pa)?;
+        positive("plant.deformation.screw_axial.area_m2", d.screw_axial.area_m2)?;
+        positive("plant.deformation.rod.youngs_modulus_pa", d.rod.youngs_modulus_pa)?;
+        // At least one rod segment has length: the axial spring must never be rigid.
+        positive("plant.deformation.rod.segment1_length_m", d.rod.segment1_length_m)?;
+        positive("plant.deformation.rod.segment1_area_m2", d.rod.segment1_area_m2)?;
+        non_negative("plant.deformation.rod.segment2_length_m", d.rod.segment2_length_m)?;
+        positive("plant.deformation.rod.segment2_area_m2", d.rod.segment2_area_m2)?;
+        non_negative("plant.deformation.bearing.coefficient_m_per_n_k", d.bearing.coefficient_m_per_n_k)?;
+        positive("plant.deformation.bearing.exponent", d.bearing.exponent)?;
+        if d.bearing.exponent > 1.0 {
+            // Above 1 the compliance would soften faster than linear and the
+            // monotone force inversion's bracket would no longer hold.
+            return Err(ParamError::new("plant.deformation.bearing.exponent", "must be <= 1"));
+        }
+        positive("plant.deformation.bearing.preload_n", d.bearing.preload_n)?;
+        positive("plant.deformation.torsion.shear_modulus_pa", d.torsion.shear_modulus_pa)?;
+        positive("plant.deformation.torsion.screw_polar_moment_m4", d.torsion.screw_polar_moment_m4)?;
+        non_negative("plant.deformation.torsion.fixed_end_length_m", d.torsion.fixed_end_length_m)?;
+        positive("plant.deformation.torsion.fixed_end_polar_moment_m4", d.torsion.fixed_end_polar_moment_m4)?;
+
+        positive("plant.friction.regularisation_velocity_m_s", self.friction.regularisation_velocity_m_s)?;
+
+        let se = &self.sensors;
+        if se.adc_bits == 0 || se.adc_bits > 24 {
+            return Err(ParamError::new("plant.sensors.adc_bits", "must be in 1..=24"));
+        }
+        positive("plant.sensors.current_full_scale_a", se.current_full_scale_a)?;
+        non_negative("plant.sensors.current_noise_a", se.current_noise_a)?;
+        positive("plant.sensors.bus_voltage_full_scale_v", se.bus_voltage_full_scale_v)?;
+        non_negative("plant.sensors.bus_voltage_noise_v", se.bus_voltage_noise_v)?;
+        if se.encoder_counts_per_rev == 0 || se.encoder_counts_per_rev > 32_768 {
+            // The core unwraps a 16-bit counter: a revolution must fit in half of it.
+            return Err(ParamError::new("plant.sensors.encoder_counts_per_rev", "must be in 1..=32768"));
+        }
+        positive("plant.sensors.linear_scale_resolution_m", se.linear_scale_resolution_m)?;
+        non_negative("plant.sensors.load_cell_noise_n", se.load_cell_noise_n)?;
+
+        let it = &self.integration;
+        positive("plant.integration.pwm_frequency_hz", it.pwm_frequency_hz)?;
+        if it.substeps_per_pwm_period < 4 {
+            return Err(ParamError::new(
+                "plant.integration.substeps_per_pwm_period",
+                "must be >= 4 (the averaged inverter needs several RK4 steps per PWM period)",
+            ));
+        }
+        self.check_step_resolves_dynamics()
+    }
+
+    /// The fastest rates of the model (1/s), by name. RK4 is stable to
+    /// |λ·h| ≈ 2.8; we ask for |λ·h| ≤ 1 so the stiffest mode is also accurate.
+    pub fn fastest_rates_per_s(&self) -> Vec<(&'static str, f64)> {
+        let r = self.metres_per_rad();
+        let m = self.moving_mass_kg();
+        let j_m = self.motor_side_inertia_kg_m2();
+        let j_s = self.screw.inertia_kg_m2;
+        let d = &self.deformation;
+        let mu = (1.0 - self.screw.efficiency) / self.screw.efficiency;
+        // A generous axial force for the load-dependent terms: three times the
+        // full weight (an end-of-stroke deceleration on top of gravity).
+        let f_ref = 3.0 * m * self.load.gravity_m_s2.max(1.0);
+        // Stiffest torsional path: nut at the fixed end (x = 0).
+        let c_rot = 1.0 / self.coupling.torsional_stiffness_n_m_rad
+            + self.screw.nut_distance_at_zero_m / (d.torsion.shear_modulus_pa * d.torsion.screw_polar_moment_m4)
+            + d.torsion.fixed_end_length_m / (d.torsion.shear_modulus_pa * d.torsion.fixed_end_polar_moment_m4);
+        let inv_j = 1.0 / j_m + 1.0 / j_s;
+        // Stiffest axial path: x = 0, at f_ref (preloaded contacts stiffen with load).
+        let lin = self.screw.nut_distance_at_zero_m / (d.screw_axial.youngs_modulus_pa * d.screw_axial.area_m2)
+            + d.rod.segment1_length_m / (d.rod.youngs_modulus_pa * d.rod.segment1_area_m2)
+            + d.rod.segment2_length_m / (d.rod.youngs_modulus_pa * d.rod.segment2_area_m2);
+        let contact = 2.0 / 3.0 * d.contact.coefficient_m_per_n2_3 * (f_ref + d.contact.preload_n).powf(-1.0 / 3.0);
+        let bearing = d.bearing.exponent
+            * d.bearing.coefficient_m_per_n_k
+            * (f_ref + d.bearing.preload_n).powf(d.bearing.exponent - 1.0);
+        let k_ax = 1.0 / (lin + contact + bearing);
+        let inv_m_ax = 1.0 / m + r * r / j_s;
+        let w_eps = self.friction.regularisation_velocity_m_s / r;
+        let screw_coulomb = self.screw.preload_drag_torque_n_m + r * mu * f_ref;
+        let l_min = self.motor.inductance_d_h.min(self.motor.inductance_q_h);
+        vec![
+            ("electrical R/L", self.motor.phase_resistance_ohm / l_min),
+            ("torsional mode", (inv_j / c_rot).sqrt()),
+            ("torsional damping", self.coupling.torsional_damping_n_m_s_rad * inv_j),
+            ("axial mode", (k_ax * inv_m_ax).sqrt()),
+            ("axial damping", d.axial_damping_n_s_m * inv_m_ax),
+            ("end-stop contact", (self.stroke.stop_stiffness_n_m / m).sqrt() + self.stroke.stop_damping_n_s_m / m),
+            (
+                "rod friction regularisation",
+                (self.rod.static_friction_n / self.friction.regularisation_velocity_m_s + self.rod.viscous_friction_n_s_m)
+                    / m,
+            ),
+            (
+                "screw friction regularisation",
+                (screw_coulomb / w_eps + self.screw.viscous_friction_n_m_s_rad) / j_s,
+            ),
+        ]
+    }
+
+    fn check_step_resolves_dynamics(&self) -> Result<(), ParamError> {
+        let h = self.max_step_s();
+        for (name, rate) in self.fastest_rates_per_s() {
+            if !rate.is_finite() {
+                return Err(ParamError::new("plant", format!("the {name} rate is not finite")));
+            }
+            if rate * h > 1.0 {
+                let needed = (rate / self.integration.pwm_frequency_hz).ceil();
+                return Err(ParamError::new(
+                    "plant.integration.substeps_per_pwm_period",
+                    format!(
+                        "too few: the {name} rate {rate:.0} 1/s needs rate·step <= 1, i.e. at least {needed} substeps"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Degrees to radians, for the TOML's human-friendly tilt.
+pub fn deg_to_rad(deg: f64) -> f64 {
+    deg * PI / 180.0
+}
+
+fn finite(field: &str, v: f64) -> Result<(), ParamError> {
+    if v.is_finite() { Ok(()) } else { Err(ParamError::new(field, "must be finite")) }
+}
+
+fn positive(field: &str, v: f64) -> Result<(), ParamError> {
+    finite(field, v)?;
+    if v > 0.0 { Ok(()) } else { Err(ParamError::new(field, "must be > 0")) }
+}
+
+fn non_negative(field: &str, v: f64) -> Result<(), ParamError> {
+    finite(field, v)?;
+    if v >= 0.0 { Ok(()) } else { Err(ParamError::new(field, "must be >= 0")) }
+}
