@@ -25,7 +25,7 @@ use embassy_executor::Spawner;
 use embassy_stm32::pac;
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use panic_probe as _;
-use servo_core::{Command, ControlParams, Controller, Mode};
+use servo_core::{Command, Controller, Mode};
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
 /// of defmt (17 floats, mode, options, fault names as indices), so 50 Hz is
@@ -62,7 +62,7 @@ async fn main(_spawner: Spawner) {
         warn!("core peripherals already taken: ISR cycle figures will read 0");
     }
 
-    let mut params = ControlParams::DEFAULT;
+    let mut params = hw::PARAMS;
     let clamped = hw::apply_board_limits(&mut params);
     if clamped != hw::BoardLimitsApplied::default() {
         warn!("parameters lowered to the board's ratings: {}", clamped);

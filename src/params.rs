@@ -303,6 +303,22 @@ impl ControlParams {
     };
 }
 
+impl ControlParams {
+    /// The same drive on a 24 V bench supply (B-G431B-ESC1: 28 V max). The
+    /// motor's back-EMF reaches the 24 V linear range at about 1700 rpm, so
+    /// the speed limit drops to 1500 rpm and the trajectory to 100 mm/s
+    /// (1200 rpm); the bus trips move to the supply's window. Everything else
+    /// — gains, current limits, stroke — is the default.
+    pub const BENCH_24V: Self = {
+        let mut p = Self::DEFAULT;
+        p.faults.bus_overvoltage_v = 28.0;
+        p.faults.bus_undervoltage_v = 18.0;
+        p.limits.speed_max_rad_s = 2.0 * PI * 1500.0 / 60.0;
+        p.trajectory.max_velocity_m_s = 0.1;
+        p
+    };
+}
+
 impl Default for ControlParams {
     fn default() -> Self {
         Self::DEFAULT

@@ -73,6 +73,10 @@ use super::{BoardStatus, Calibration, ServoBoard, ISR_STATS};
 /// Shown in the boot banner.
 pub const NAME: &str = "B-G431B-ESC1 (STM32G431CB)";
 
+/// The parameter set this board runs: the ESC1 takes at most a 6S (25.2 V)
+/// pack, so the 24 V bench variant of the drive.
+pub const PARAMS: ControlParams = ControlParams::BENCH_24V;
+
 /// Board calibration: every constant that turns a raw code into SI units, in
 /// one place. Sources: UM2516 schematic and ST MCSDK's B-G431B-ESC1 power
 /// board description.
