@@ -1,0 +1,54 @@
+//! The paper's run, closed loop through the control core, checked against
+//! what the physics and the design say it must do.
+
+use host_sim::config::RigConfig;
+use host_sim::report::metrics::paper_summary;
+use host_sim::scenario::{run_stroke_cycle, Direction, StrokeCycle};
+
+#[test]
+fn paper_cycle_tracks_the_reference_and_shows_the_fig5_deformation() {
+    let rig = RigConfig::nominal().unwrap();
+    let cycle = StrokeCycle::paper(7);
+    let trace = run_stroke_cycle(&rig, &cycle).unwrap();
+    assert_eq!(trace.aborted, None);
+    let s = paper_summary(&trace, 7, cycle.settle_s);
+
+    // Both legs ran to their ends.
+    let top = trace.telemetry.iter().map(|t| t.position_reference_m).fold(f32::MIN, f32::max);
+    assert!((top - 0.45).abs() < 1e-6, "top {top}");
+    let last = trace.truth.last().unwrap();
+    assert!(last.motor_side_position_m.abs() < 50e-6, "ends at {}", last.motor_side_position_m);
+
+    // Semi-closed loop: the motor side follows the S-curve to a few tens of
+    // µm (a tenth of the deformation the observer has to remove).
+    assert!(s.motor_tracking_max_um < 50.0, "{}", s.motor_tracking_max_um);
+    assert!(s.motor_tracking_rms_um < 10.0, "{}", s.motor_tracking_rms_um);
+
+    // The terminal sags under the rated load by Fig. 5's order: at most
+    // ≈0.32 mm of static deformation at full stroke and rated thrust, plus the
+    // dynamic share from accelerating 140 kg.
+    assert!(s.terminal_error_max_mm > 0.25 && s.terminal_error_max_mm < 0.45, "{}", s.terminal_error_max_mm);
+
+    // δ2 = F x/(E A): the sag grows along the stroke on both legs.
+    for dir in [Direction::Elongation, Direction::Contraction] {
+        let at = |x: f32| {
+            trace
+                .telemetry
+                .iter()
+                .zip(&trace.truth)
+                .filter(|(t, r)| r.direction == dir && (t.position_reference_m - x).abs() < 0.005)
+                .map(|(_, r)| r.deformation_m)
+                .sum::<f64>()
+        };
+        assert!(at(0.40) < at(0.10), "{dir:?}: deformation does not grow along the stroke");
+    }
+
+    // Eq. 19 limits hold: current circle and speed.
+    assert!(s.peak_phase_current_a <= f64::from(rig.control.limits.current_max_a) * 1.05, "{}", s.peak_phase_current_a);
+    let w_max = trace.truth.iter().map(|r| r.motor_speed_rad_s.abs()).fold(0.0, f64::max);
+    assert!(w_max <= f64::from(rig.control.limits.speed_max_rad_s), "{w_max}");
+
+    // The thrust peaks above the rated 1.38 kN only by the payload's inertia
+    // (2.5 m/s² on 140.7 kg ≈ 350 N) and the friction.
+    assert!(s.peak_thrust_n > 1380.0 && s.peak_thrust_n < 1380.0 + 350.0 + 300.0, "{}", s.peak_thrust_n);
+}
