@@ -8,9 +8,9 @@ use crate::foc::{wrap_pi, CurrentLoop, Dq};
 use crate::foc::current_loop::RotorState;
 use crate::io::{PwmCommand, SensorSample};
 use crate::load_estimate::LoadEstimator;
-use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
+use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop, StopRamp, TrajectorySample};
 use crate::params::{ControlParams, ParamError};
-use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
+use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
 use core::f32::consts::PI;
 
@@ -60,6 +60,9 @@ pub enum CommandError {
     Busy,
     /// A NaN or infinite argument.
     NotFinite,
+    /// An argument beyond its bound (e.g. a shift above
+    /// `faults.observer_shift_max_m`).
+    OutOfRange,
 }
 
 /// Period-independent constants, computed once so the 20 kHz path does no
@@ -67,6 +70,7 @@ pub enum CommandError {
 #[derive(Clone, Copy, Debug)]
 struct Derived {
     pwm_period_s: f32,
+    speed_period_s: f32,
     position_period_s: f32,
     current_limit_a: f32,
     metres_per_count: f32,
@@ -79,6 +83,7 @@ impl Derived {
         let cpr = p.encoder.counts_per_rev as f32;
         Self {
             pwm_period_s: p.pwm_period_s(),
+            speed_period_s: p.speed_period_s(),
             position_period_s: p.position_period_s(),
             current_limit_a: p.current_limit_a(),
             metres_per_count: p.drive_train.screw_lead_m / cpr,
@@ -117,6 +122,14 @@ pub struct Controller {
     pending_limits: LimitFlags,
     load: LoadEstimator,
     align_ticks: u32,
+    thermal: ThermalModel,
+    /// The controlled stop in progress (mode `Stopping`).
+    stop: StopRamp,
+    /// How long |ω_ref − ω| has been over its threshold.
+    speed_error_s: f32,
+    /// How long the encoder has shown no count while told to turn.
+    no_count_s: f32,
+    count_at_last_speed_tick: i32,
     bus_voltage_v: f32,
     terminal_position_m: Option<f32>,
     telemetry: Telemetry,
@@ -171,6 +184,11 @@ impl Controller {
             pending_limits: LimitFlags::NONE,
             load: LoadEstimator::new(),
             align_ticks: 0,
+            thermal: ThermalModel::new(),
+            stop: StopRamp::default(),
+            speed_error_s: 0.0,
+            no_count_s: 0.0,
+            count_at_last_speed_tick: 0,
             bus_voltage_v: 0.0,
             terminal_position_m: None,
             telemetry: Telemetry::default(),
@@ -208,15 +226,47 @@ impl Controller {
         (self.move_ticks as f32) * self.derived.position_period_s < self.trajectory.duration_s()
     }
 
+    /// Normalised winding temperature of the I²t model (1 = continuous rating).
+    pub fn thermal_level(&self) -> f32 {
+        self.thermal.level()
+    }
+
     /// The board calls this when a sample arrived before the previous step
     /// finished.
     pub fn report_isr_overrun(&mut self) {
-        self.latch(FaultSet::ISR_OVERRUN);
+        self.raise(FaultSet::ISR_OVERRUN);
     }
 
-    fn latch(&mut self, f: FaultSet) {
-        self.faults.insert(f);
-        self.mode = Mode::Fault;
+    /// The board calls this at start-up if the independent watchdog caused
+    /// the last reset: the drive then waits for an explicit clear.
+    pub fn report_watchdog_reset(&mut self) {
+        self.raise(FaultSet::WATCHDOG_RESET);
+    }
+
+    /// Latches `f`; new faults get their reaction.
+    fn raise(&mut self, f: FaultSet) {
+        let new = f.difference(self.faults);
+        if new.is_empty() {
+            return;
+        }
+        self.faults.insert(new);
+        if !self.faults.only_controlled_stop() {
+            self.mode = Mode::Fault;
+            return;
+        }
+        match self.mode {
+            Mode::Running => self.begin_stop(),
+            Mode::Stopping => {}
+            Mode::Disabled | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
+        }
+    }
+
+    /// Decelerates from the measured motion to rest and holds there.
+    fn begin_stop(&mut self) {
+        let v = self.speed_rad_s() * self.params.metres_per_rad();
+        self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
+        self.position_shift_m = 0.0;
+        self.mode = Mode::Stopping;
     }
 
     /// Handles one command from thread context.
@@ -235,9 +285,7 @@ impl Controller {
                 Ok(CommandOutcome::Accepted)
             }
             Command::Disable => {
-                if self.mode != Mode::Fault {
-                    self.mode = Mode::Disabled;
-                }
+                self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
                 self.reset_loops();
                 Ok(CommandOutcome::Accepted)
             }
@@ -287,19 +335,29 @@ impl Controller {
                 Ok(CommandOutcome::Accepted)
             }
             Command::ClearFaults => {
-                let stuck = FaultSet(self.faults.0 & self.present.0);
+                let stuck = self.faults.intersection(self.present);
                 if !stuck.is_empty() {
                     return Err(CommandError::CauseStillPresent(stuck));
                 }
                 self.faults = FaultSet::NONE;
-                if self.mode == Mode::Fault {
-                    self.mode = Mode::Disabled;
+                match self.mode {
+                    Mode::Fault => self.mode = Mode::Disabled,
+                    Mode::Stopping => {
+                        // Resume position control where the stop left it.
+                        self.trajectory = ScurveMove::hold(self.position_command_m);
+                        self.move_ticks = 0;
+                        self.mode = Mode::Running;
+                    }
+                    _ => {}
                 }
                 Ok(CommandOutcome::Accepted)
             }
             Command::SetPositionShift { shift_m } => {
                 if !shift_m.is_finite() {
                     return Err(CommandError::NotFinite);
+                }
+                if shift_m.abs() > self.params.faults.observer_shift_max_m {
+                    return Err(CommandError::OutOfRange);
                 }
                 self.position_shift_m = shift_m;
                 Ok(CommandOutcome::Accepted)
@@ -348,7 +406,7 @@ impl Controller {
         if s.bus_voltage_v > f.bus_overvoltage_v {
             present.insert(FaultSet::BUS_OVERVOLTAGE);
         }
-        if s.bus_voltage_v < f.bus_undervoltage_v && matches!(self.mode, Mode::Running | Mode::Aligning) {
+        if s.bus_voltage_v < f.bus_undervoltage_v && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Aligning) {
             present.insert(FaultSet::BUS_UNDERVOLTAGE);
         }
         present
@@ -371,17 +429,18 @@ impl Controller {
         );
         if enc.implausible_step {
             // A jump is an event, not a standing condition: it can be cleared.
-            self.faults.insert(FaultSet::ENCODER_JUMP);
-            self.mode = Mode::Fault;
+            self.raise(FaultSet::ENCODER_JUMP);
         }
+        let speed_tick = self.tick.is_multiple_of(self.params.rates.speed_loop_divider);
         let position_tick = self.tick.is_multiple_of(self.params.rates.position_loop_divider);
+        if speed_tick {
+            present = present.union(self.check_speed_period());
+        }
         if position_tick {
             present = present.union(self.check_motion());
         }
         self.present = present;
-        if present.0 & !FaultSet::INVALID_PARAMS.0 != 0 {
-            self.latch(FaultSet(present.0 & !FaultSet::INVALID_PARAMS.0));
-        }
+        self.raise(present.difference(FaultSet::INVALID_PARAMS));
 
         let out = match self.mode {
             Mode::Disabled | Mode::Fault => {
@@ -390,7 +449,7 @@ impl Controller {
                 PwmCommand::OFF
             }
             Mode::Aligning => self.align_period(s),
-            Mode::Running => self.run_period(s, position_tick),
+            Mode::Running | Mode::Stopping => self.run_period(s, position_tick, speed_tick),
         };
         if position_tick {
             self.cut_telemetry(s);
@@ -398,19 +457,59 @@ impl Controller {
         out
     }
 
-    /// Following error and overtravel, evaluated at the position rate.
-    fn check_motion(&self) -> FaultSet {
+    /// Winding temperature, speed following and encoder loss, at the speed
+    /// rate. Returns the standing conditions; raises the events.
+    fn check_speed_period(&mut self) -> FaultSet {
+        let mut present = FaultSet::NONE;
+        let dt = self.derived.speed_period_s;
+        let i2 = self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q;
+        self.thermal.update(&self.params.thermal, i2, dt);
+        if self.thermal.tripped(&self.params.thermal) {
+            present.insert(FaultSet::MOTOR_OVERTEMP);
+        }
+        let count = self.encoder.count();
+        let moved = count != self.count_at_last_speed_tick;
+        self.count_at_last_speed_tick = count;
+        if !matches!(self.mode, Mode::Running | Mode::Stopping) {
+            self.speed_error_s = 0.0;
+            self.no_count_s = 0.0;
+            return present;
+        }
+        let f = &self.params.faults;
+        let w_ref = self.speed_reference_rad_s;
+        self.speed_error_s =
+            if (w_ref - self.speed_rad_s()).abs() > f.speed_following_error_rad_s { self.speed_error_s + dt } else { 0.0 };
+        if self.speed_error_s >= f.speed_following_time_s {
+            present.insert(FaultSet::SPEED_FOLLOWING);
+        }
+        self.no_count_s = if !moved && w_ref.abs() > f.encoder_lost_speed_rad_s { self.no_count_s + dt } else { 0.0 };
+        if self.no_count_s >= f.encoder_lost_time_s {
+            self.raise(FaultSet::ENCODER_LOST);
+        }
+        present
+    }
+
+    /// Following error, overtravel and the soft limits, at the position rate.
+    fn check_motion(&mut self) -> FaultSet {
         let mut present = FaultSet::NONE;
         let x = self.motor_position_m();
         let l = &self.params.limits;
-        let over = self.params.faults.stroke_overtravel_m;
-        if x < l.stroke_min_m - over || x > l.stroke_max_m + over {
+        let f = &self.params.faults;
+        if x < l.stroke_min_m - f.stroke_overtravel_m || x > l.stroke_max_m + f.stroke_overtravel_m {
             present.insert(FaultSet::STROKE_OVERTRAVEL);
         }
-        if self.mode == Mode::Running
-            && (self.position_command_m - x).abs() > self.params.faults.position_following_error_m
+        if matches!(self.mode, Mode::Running | Mode::Stopping)
+            && (self.position_command_m - x).abs() > f.position_following_error_m
         {
             present.insert(FaultSet::POSITION_FOLLOWING);
+        }
+        if self.mode == Mode::Running {
+            // Where would a stop at the stop deceleration end?
+            let v = self.speed_rad_s() * self.params.metres_per_rad();
+            let rest = x + v * v.abs() / (2.0 * f.stop_deceleration_m_s2);
+            if rest > l.stroke_max_m + f.stroke_soft_margin_m || rest < l.stroke_min_m - f.stroke_soft_margin_m {
+                self.raise(FaultSet::SOFT_LIMIT);
+            }
         }
         present
     }
@@ -423,13 +522,16 @@ impl Controller {
         }
     }
 
-    fn run_period(&mut self, s: &SensorSample, position_tick: bool) -> PwmCommand {
+    fn run_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
         if position_tick {
             self.position_period(s);
         }
-        if self.tick.is_multiple_of(self.params.rates.speed_loop_divider) {
-            let iq_max2 = self.derived.current_limit_a * self.derived.current_limit_a
-                - self.current_reference.d * self.current_reference.d;
+        if speed_tick {
+            let limit = self.thermal.current_limit_a(&self.params.thermal, self.derived.current_limit_a);
+            if limit < self.derived.current_limit_a {
+                self.limits.insert(LimitFlags::THERMAL);
+            }
+            let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
             let iq_max = libm::sqrtf(iq_max2.max(0.0));
             let out = self.speed_loop.step(
                 &self.params,
@@ -457,10 +559,19 @@ impl Controller {
         PwmCommand { duty: out.duty, enable: true }
     }
 
-    fn position_period(&mut self, s: &SensorSample) {
+    /// The position reference for this period: the planned move, or the
+    /// controlled stop.
+    fn next_reference(&mut self) -> TrajectorySample {
+        if self.mode == Mode::Stopping {
+            return self.stop.advance(self.derived.position_period_s);
+        }
         let t = self.move_ticks as f32 * self.derived.position_period_s;
         self.move_ticks = self.move_ticks.saturating_add(1);
-        let r = self.trajectory.sample(t);
+        self.trajectory.sample(t)
+    }
+
+    fn position_period(&mut self, s: &SensorSample) {
+        let r = self.next_reference();
         self.position_reference_m = r.position_m;
         let l = &self.params.limits;
         let (command, clamped) = clamp_to_stroke(r.position_m + self.position_shift_m, l.stroke_min_m, l.stroke_max_m);

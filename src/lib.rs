@@ -20,6 +20,7 @@ pub mod foc;
 pub mod io;
 pub mod load_estimate;
 pub mod motion;
+pub mod observer;
 pub mod params;
 pub mod pi;
 pub mod protection;

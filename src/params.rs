@@ -124,6 +124,55 @@ pub struct FaultParams {
     pub position_following_error_m: f32,
     /// Motor-side position beyond the stroke by more than this trips.
     pub stroke_overtravel_m: f32,
+    /// |ω_ref − ω| above this for `speed_following_time_s` trips.
+    pub speed_following_error_rad_s: f32,
+    pub speed_following_time_s: f32,
+    /// No encoder count for `encoder_lost_time_s` while |ω_ref| exceeds
+    /// `encoder_lost_speed_rad_s`: the signal is lost or the rotor stalled.
+    pub encoder_lost_speed_rad_s: f32,
+    pub encoder_lost_time_s: f32,
+    /// Soft limits: a controlled stop starts when the stopping distance at
+    /// `stop_deceleration_m_s2` would carry the motor more than this beyond
+    /// the stroke, so it stops inside `stroke ± margin` (and before the
+    /// overtravel trip and the end stops).
+    pub stroke_soft_margin_m: f32,
+    /// Deceleration of a controlled stop.
+    pub stop_deceleration_m_s2: f32,
+    /// Largest believable error-observer shift; beyond it (or non-finite) the
+    /// observer is switched off and the drive stops.
+    pub observer_shift_max_m: f32,
+}
+
+/// I²t winding protection: a first-order thermal model normalised to the
+/// continuous current, `τ dθ/dt = |i|²/I_c² − θ`; θ = 1 is the steady state
+/// at the continuous rating.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+pub struct ThermalParams {
+    /// Continuous current (peak phase amplitude) the winding tolerates.
+    pub continuous_current_a: f32,
+    /// Winding thermal time constant.
+    pub time_constant_s: f32,
+    /// From this θ on, the current limit folds back linearly to the
+    /// continuous current, reached at θ = 1.
+    pub foldback_start: f32,
+    /// θ that latches the fault (reachable only if the continuous current is
+    /// exceeded, i.e. the foldback could not hold it).
+    pub trip_level: f32,
+}
+
+/// What the hardware can take: limits above these are refused at load time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+pub struct RatingParams {
+    /// Motor peak current (demagnetisation bound), phase amplitude.
+    pub motor_peak_current_a: f32,
+    /// Inverter (switches, shunts) peak current.
+    pub inverter_peak_current_a: f32,
+    /// DC-link capacitor and switch voltage rating.
+    pub bus_max_voltage_v: f32,
+    /// Mechanical speed rating of motor and screw (critical speed).
+    pub speed_max_rad_s: f32,
 }
 
 /// Load-force estimate from the q-axis current.
@@ -166,6 +215,8 @@ pub struct ControlParams {
     pub faults: FaultParams,
     pub load_estimate: LoadEstimateParams,
     pub alignment: AlignmentParams,
+    pub thermal: ThermalParams,
+    pub ratings: RatingParams,
 }
 
 const CURRENT_BANDWIDTH_RAD_S: f32 = 2.0 * PI * 1000.0;
@@ -295,11 +346,40 @@ impl ControlParams {
             encoder_max_step_counts: 2_000,
             position_following_error_m: 0.005,
             stroke_overtravel_m: 0.005,
+            // A quarter of rated speed for 50 ms: far outside what the loop
+            // leaves in normal running (a few rad/s), quick enough that the
+            // rod moves < 5 mm before the stop.
+            speed_following_error_rad_s: 80.0,
+            speed_following_time_s: 0.05,
+            // 30 rad/s gives 48 counts per ms at 10 000 counts/rev; none in
+            // 20 ms is no quantisation effect.
+            encoder_lost_speed_rad_s: 30.0,
+            encoder_lost_time_s: 0.02,
+            // Stops land within 2 mm of the stroke ends, inside the 5 mm
+            // overtravel trip and the end stops 10 mm out.
+            stroke_soft_margin_m: 0.002,
+            // Twice the trajectory's: a stop is shorter than any planned move.
+            stop_deceleration_m_s2: 5.0,
+            // The paper's largest compensation, 1.5 mm, with a third more room.
+            observer_shift_max_m: 0.002,
         },
         load_estimate: LoadEstimateParams { filter_hz: 20.0 },
         // Rated current: enough torque to pull the rotor against the screw's
         // friction, short enough not to heat it.
         alignment: AlignmentParams { current_a: 12.0, duration_s: 0.5 },
+        // Rated torque 1.27 N·m at K_t = 0.105 → 12 A continuous. A 400 W
+        // servo winding's thermal time constant is minutes; 30 s is on the
+        // safe side and still allows 3× current for ≈3.5 s from cold.
+        thermal: ThermalParams { continuous_current_a: 12.0, time_constant_s: 30.0, foldback_start: 0.8, trip_level: 1.05 },
+        // Motor: 3× rated peak (catalogue class); inverter: a 48 V, 40 A
+        // stage; bus: 63 V capacitors; speed: motor 3000 rpm rating (the
+        // Ø20×5 screw's critical speed at 600 mm is higher).
+        ratings: RatingParams {
+            motor_peak_current_a: 36.0,
+            inverter_peak_current_a: 40.0,
+            bus_max_voltage_v: 63.0,
+            speed_max_rad_s: 2.0 * PI * 3000.0 / 60.0,
+        },
     };
 }
 
@@ -449,6 +529,55 @@ impl ControlParams {
             return Err(ParamError { field: "control.alignment.current_a", reason: "must be <= limits.current_max_a" });
         }
         positive("control.alignment.duration_s", self.alignment.duration_s)?;
+        positive("control.faults.speed_following_error_rad_s", f.speed_following_error_rad_s)?;
+        positive("control.faults.speed_following_time_s", f.speed_following_time_s)?;
+        positive("control.faults.encoder_lost_speed_rad_s", f.encoder_lost_speed_rad_s)?;
+        positive("control.faults.encoder_lost_time_s", f.encoder_lost_time_s)?;
+        non_negative("control.faults.stroke_soft_margin_m", f.stroke_soft_margin_m)?;
+        if f.stroke_soft_margin_m >= f.stroke_overtravel_m {
+            return Err(ParamError {
+                field: "control.faults.stroke_soft_margin_m",
+                reason: "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
+            });
+        }
+        positive("control.faults.stop_deceleration_m_s2", f.stop_deceleration_m_s2)?;
+        if f.stop_deceleration_m_s2 < self.trajectory.max_acceleration_m_s2 {
+            return Err(ParamError {
+                field: "control.faults.stop_deceleration_m_s2",
+                reason: "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
+            });
+        }
+        positive("control.faults.observer_shift_max_m", f.observer_shift_max_m)?;
+        let th = &self.thermal;
+        positive("control.thermal.continuous_current_a", th.continuous_current_a)?;
+        if th.continuous_current_a > l.current_max_a {
+            return Err(ParamError { field: "control.thermal.continuous_current_a", reason: "must be <= limits.current_max_a" });
+        }
+        positive("control.thermal.time_constant_s", th.time_constant_s)?;
+        positive("control.thermal.foldback_start", th.foldback_start)?;
+        if th.foldback_start >= 1.0 {
+            return Err(ParamError { field: "control.thermal.foldback_start", reason: "must be < 1" });
+        }
+        if !(th.trip_level > 1.0) || !th.trip_level.is_finite() {
+            return Err(ParamError { field: "control.thermal.trip_level", reason: "must be finite and > 1" });
+        }
+        let r = &self.ratings;
+        positive("control.ratings.motor_peak_current_a", r.motor_peak_current_a)?;
+        positive("control.ratings.inverter_peak_current_a", r.inverter_peak_current_a)?;
+        positive("control.ratings.bus_max_voltage_v", r.bus_max_voltage_v)?;
+        positive("control.ratings.speed_max_rad_s", r.speed_max_rad_s)?;
+        if l.current_max_a > r.motor_peak_current_a || l.current_max_a > r.inverter_peak_current_a {
+            return Err(ParamError {
+                field: "control.limits.current_max_a",
+                reason: "above the motor or inverter peak rating (control.ratings)",
+            });
+        }
+        if f.bus_overvoltage_v > r.bus_max_voltage_v {
+            return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "above control.ratings.bus_max_voltage_v" });
+        }
+        if l.speed_max_rad_s > r.speed_max_rad_s {
+            return Err(ParamError { field: "control.limits.speed_max_rad_s", reason: "above control.ratings.speed_max_rad_s" });
+        }
         Ok(())
     }
 }

@@ -15,6 +15,8 @@ pub enum Mode {
     Aligning,
     /// Position control.
     Running,
+    /// A controlled-stop fault latched: decelerating, then holding, bridge on.
+    Stopping,
     /// A fault latched; bridge off until cleared.
     Fault,
 }

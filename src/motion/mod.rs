@@ -4,9 +4,11 @@
 pub mod encoder;
 pub mod position_loop;
 pub mod speed_loop;
+pub mod stop;
 pub mod trajectory;
 
 pub use encoder::{EncoderTracker, EncoderUpdate};
 pub use position_loop::{position_step, PositionLoopOutput};
 pub use speed_loop::{SpeedLoop, SpeedLoopOutput};
+pub use stop::StopRamp;
 pub use trajectory::{ScurveMove, TrajectorySample};

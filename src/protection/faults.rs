@@ -28,9 +28,31 @@ impl FaultSet {
     pub const INVALID_PARAMS: Self = Self(1 << 7);
     /// A new sample arrived before the previous step finished (board-reported).
     pub const ISR_OVERRUN: Self = Self(1 << 8);
+    /// The I²t winding model passed its trip level.
+    pub const MOTOR_OVERTEMP: Self = Self(1 << 9);
+    /// |ω_ref − ω| stayed above the threshold.
+    pub const SPEED_FOLLOWING: Self = Self(1 << 10);
+    /// No encoder count while commanded to turn: lost signal or stalled rotor.
+    pub const ENCODER_LOST: Self = Self(1 << 11);
+    /// The motor would not stop inside the stroke (soft limit).
+    pub const SOFT_LIMIT: Self = Self(1 << 12);
+    /// The error observer's shift was non-finite or beyond its bound.
+    pub const OBSERVER_OUT_OF_BOUNDS: Self = Self(1 << 13);
+    /// The last reset came from the independent watchdog (board-reported).
+    pub const WATCHDOG_RESET: Self = Self(1 << 14);
+
+    /// Faults whose reaction is a controlled stop, not switching off. The
+    /// motor, its sensors and the bridge still work; only the motion is
+    /// wrong. Switching off would let a vertical payload back-drive the
+    /// screw (η ≈ 0.89 backwards), so the drive decelerates at
+    /// `faults.stop_deceleration_m_s2` and holds. All other faults mean the
+    /// drive cannot trust its measurements or its power stage: bridge off.
+    pub const CONTROLLED_STOP: Self = Self(
+        Self::POSITION_FOLLOWING.0 | Self::SPEED_FOLLOWING.0 | Self::SOFT_LIMIT.0 | Self::OBSERVER_OUT_OF_BOUNDS.0,
+    );
 
     /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 9] = [
+    pub const ALL: [(Self, &'static str); 15] = [
         (Self::OVERCURRENT, "overcurrent"),
         (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
         (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
@@ -40,6 +62,12 @@ impl FaultSet {
         (Self::NON_FINITE_INPUT, "non_finite_input"),
         (Self::INVALID_PARAMS, "invalid_params"),
         (Self::ISR_OVERRUN, "isr_overrun"),
+        (Self::MOTOR_OVERTEMP, "motor_overtemp"),
+        (Self::SPEED_FOLLOWING, "speed_following"),
+        (Self::ENCODER_LOST, "encoder_lost"),
+        (Self::SOFT_LIMIT, "soft_limit"),
+        (Self::OBSERVER_OUT_OF_BOUNDS, "observer_out_of_bounds"),
+        (Self::WATCHDOG_RESET, "watchdog_reset"),
     ];
 
     pub const fn is_empty(self) -> bool {
@@ -60,6 +88,19 @@ impl FaultSet {
 
     pub const fn bits(self) -> u16 {
         self.0
+    }
+
+    pub const fn intersection(self, other: Self) -> Self {
+        Self(self.0 & other.0)
+    }
+
+    pub const fn difference(self, other: Self) -> Self {
+        Self(self.0 & !other.0)
+    }
+
+    /// True if every latched fault is one that calls for a controlled stop.
+    pub const fn only_controlled_stop(self) -> bool {
+        !self.is_empty() && self.difference(Self::CONTROLLED_STOP).is_empty()
     }
 }
 

@@ -17,6 +17,8 @@ impl LimitFlags {
     pub const SPEED: Self = Self(1 << 2);
     /// A position command was clamped into the stroke.
     pub const STROKE: Self = Self(1 << 3);
+    /// The I²t model folded the current limit back.
+    pub const THERMAL: Self = Self(1 << 4);
 
     pub fn insert(&mut self, other: Self) {
         self.0 |= other.0;
