@@ -150,11 +150,12 @@ async fn main(_spawner: Spawner) {
             }
         }
 
-        // LED: on = running, 1 Hz blink = disabled, 5 Hz blink = fault.
+        // LED: on = running, 1 Hz blink = disabled, 5 Hz blink = fault or
+        // controlled stop (bridge on, holding).
         let led = match mode {
             Mode::Running | Mode::Aligning => true,
             Mode::Disabled => (tick / (TELEMETRY_HZ as u32 / 2)).is_multiple_of(2),
-            Mode::Fault => (tick / (TELEMETRY_HZ as u32 / 10)).is_multiple_of(2),
+            Mode::Fault | Mode::Stopping => (tick / (TELEMETRY_HZ as u32 / 10)).is_multiple_of(2),
         };
         board.set_led(led);
 
