@@ -38,6 +38,9 @@ use servo_core::{Command, Controller, Mode};
 const TELEMETRY_HZ: u64 = 50;
 /// One heartbeat line every this many telemetry ticks (1 Hz).
 const HEARTBEAT_EVERY: u32 = TELEMETRY_HZ as u32;
+/// Independent watchdog timeout: five telemetry periods. The main task feeds
+/// it only while the current-loop ISR keeps running.
+const WATCHDOG_TIMEOUT_MS: u32 = 100;
 /// Zero-current samples averaged per phase at start-up (≈ 0.1 s at 20 kHz).
 const OFFSET_CALIBRATION_SAMPLES: u32 = 2048;
 /// Find the electrical offset at start-up (incremental encoders lose it at
@@ -53,6 +56,10 @@ const DEMO_MOTION: Option<([f32; 2], Duration)> = None;
 async fn main(_spawner: Spawner) {
     let p = embassy_stm32::init(hw::clock_config());
     info!("cylinder-servo {} on {}", env!("CARGO_PKG_VERSION"), hw::NAME);
+    let watchdog_reset = board::watchdog::take_reset_cause();
+    if watchdog_reset {
+        error!("the last reset came from the independent watchdog");
+    }
 
     // DWT cycle counter for the interrupt timing figures.
     if let Some(mut cp) = cortex_m::Peripherals::take() {
@@ -104,7 +111,10 @@ async fn main(_spawner: Spawner) {
     if let Err(e) = params.validate() {
         error!("parameter `{=str}` {=str}: the controller will not enable", e.field, e.reason);
     }
-    let controller = Controller::new(params);
+    let mut controller = Controller::new(params);
+    if watchdog_reset {
+        controller.report_watchdog_reset();
+    }
     let faults = controller.faults();
     board::install_controller(controller);
     if !faults.is_empty() {
@@ -119,6 +129,9 @@ async fn main(_spawner: Spawner) {
     }
 
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
+    // Fed below only while the ISR keeps running: 5 telemetry ticks of slack.
+    board::watchdog::start(WATCHDOG_TIMEOUT_MS);
+    let mut isr_periods_at_feed = ISR_STATS.snapshot().periods;
     let mut tick: u32 = 0;
     let mut button_was = false;
     let mut demo_leg = 0usize;
@@ -126,6 +139,11 @@ async fn main(_spawner: Spawner) {
     loop {
         ticker.next().await;
         tick = tick.wrapping_add(1);
+        let isr_periods = ISR_STATS.snapshot().periods;
+        if isr_periods != isr_periods_at_feed {
+            board::watchdog::feed();
+            isr_periods_at_feed = isr_periods;
+        }
 
         let snapshot = with_controller(|c| (c.telemetry(), c.mode(), c.move_in_progress()));
         let Some((telemetry, mode, moving)) = snapshot else {

@@ -27,6 +27,7 @@ use critical_section::{CriticalSection, Mutex};
 use servo_core::{Controller, PwmCommand, SensorSample};
 
 pub mod b_g431b_esc1;
+pub mod watchdog;
 
 /// The board this image is built for.
 pub use b_g431b_esc1 as active;
