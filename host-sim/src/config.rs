@@ -21,7 +21,10 @@ pub struct RigConfig {
 impl RigConfig {
     /// Parses and validates TOML text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self> {
-        let cfg: RigConfig = toml::from_str(text).map_err(|e| anyhow!("{origin}: {e}"))?;
+        // serde_path_to_error names the dotted field (`control.motor: missing
+        // field …`) rather than only a line number.
+        let de = toml::Deserializer::parse(text).map_err(|e| anyhow!("{origin}: {e}"))?;
+        let cfg: RigConfig = serde_path_to_error::deserialize(de).map_err(|e| anyhow!("{origin}: `{}`: {}", e.path(), e.inner()))?;
         cfg.control.validate().map_err(|e| anyhow!("{origin}: {e}"))?;
         cfg.plant.validate().map_err(|e| anyhow!("{origin}: {e}"))?;
         Ok(cfg)

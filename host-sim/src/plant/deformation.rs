@@ -182,7 +182,9 @@ impl Compliance {
             let (d4, s4) = self.bearing.deflection_and_slope(f);
             let g = d1 + d4 + lin * f - target;
             let next = (f - g / (s1 + s4 + lin)).clamp(lo, hi);
-            let done = (next - f).abs() <= 1e-14 * next.max(1e-3);
+            // Newton's error after a step is ~ (step/F)² · F (the curvature
+            // term is O(1/F)), so a step under 1e-7·F leaves < 1e-14·F.
+            let done = (next - f).abs() <= 1e-7 * next.max(1e-3);
             f = next;
             if done {
                 break;

@@ -100,7 +100,7 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
     let max_s = cycle.settle_s + 2.0 * cycle.dwell_s + 4.0 * (cycle.top_m / 0.05 + 5.0);
     loop {
         let tel = cl.step();
-        if cl.periods() % divider != 0 {
+        if !cl.periods().is_multiple_of(divider) {
             continue;
         }
         let t = cl.time_s();
