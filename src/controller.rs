@@ -4,6 +4,7 @@
 //! decimated periods — the position loop and the speed loop, then the current
 //! loop, so new outer references act in the same period they are computed.
 
+use crate::compensation::Compensator;
 use crate::foc::{wrap_pi, CurrentLoop, Dq};
 use crate::foc::current_loop::RotorState;
 use crate::io::{PwmCommand, SensorSample};
@@ -30,9 +31,11 @@ pub enum Command {
     Align,
     /// Clear latched faults whose cause is gone.
     ClearFaults,
-    /// Shift added to the trajectory before the position loop (the error
-    /// observer's compensation), metres.
+    /// An external shift added to the trajectory before the position loop,
+    /// metres (on top of the observer's, if compensation is on).
     SetPositionShift { shift_m: f32 },
+    /// Switch the observer's terminal-error compensation on or off.
+    SetCompensation { enabled: bool },
 }
 
 /// A command was taken, possibly after bounding it.
@@ -109,7 +112,11 @@ pub struct Controller {
     speed_loop: SpeedLoop,
     trajectory: ScurveMove,
     move_ticks: u32,
+    /// External shift (`SetPositionShift`).
     position_shift_m: f32,
+    compensator: Compensator,
+    /// Total shift applied last position period (external + observer).
+    applied_shift_m: f32,
     position_command_m: f32,
     position_reference_m: f32,
     speed_reference_rad_s: f32,
@@ -173,6 +180,8 @@ impl Controller {
             trajectory: ScurveMove::hold(0.0),
             move_ticks: 0,
             position_shift_m: 0.0,
+            compensator: Compensator::new(params.compensation.enabled_at_start),
+            applied_shift_m: 0.0,
             position_command_m: 0.0,
             position_reference_m: 0.0,
             speed_reference_rad_s: 0.0,
@@ -266,6 +275,8 @@ impl Controller {
         let v = self.speed_rad_s() * self.params.metres_per_rad();
         self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
         self.position_shift_m = 0.0;
+        self.compensator.set_enabled(false);
+        self.compensator.reset();
         self.mode = Mode::Stopping;
     }
 
@@ -360,6 +371,10 @@ impl Controller {
                     return Err(CommandError::OutOfRange);
                 }
                 self.position_shift_m = shift_m;
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::SetCompensation { enabled } => {
+                self.compensator.set_enabled(enabled);
                 Ok(CommandOutcome::Accepted)
             }
         }
@@ -573,8 +588,25 @@ impl Controller {
     fn position_period(&mut self, s: &SensorSample) {
         let r = self.next_reference();
         self.position_reference_m = r.position_m;
+        let observer_shift = if self.mode == Mode::Running {
+            let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n());
+            let c = self.compensator.update(&self.params, inputs, self.derived.position_period_s);
+            if c.limited {
+                self.limits.insert(LimitFlags::COMPENSATION);
+            }
+            if c.input_clamped {
+                self.limits.insert(LimitFlags::OBSERVER_INPUT);
+            }
+            if c.out_of_bounds {
+                self.raise(FaultSet::OBSERVER_OUT_OF_BOUNDS);
+            }
+            c.shift_m
+        } else {
+            0.0
+        };
+        self.applied_shift_m = observer_shift + self.position_shift_m;
         let l = &self.params.limits;
-        let (command, clamped) = clamp_to_stroke(r.position_m + self.position_shift_m, l.stroke_min_m, l.stroke_max_m);
+        let (command, clamped) = clamp_to_stroke(r.position_m + self.applied_shift_m, l.stroke_min_m, l.stroke_max_m);
         if clamped {
             self.limits.insert(LimitFlags::STROKE);
         }
@@ -622,6 +654,7 @@ impl Controller {
             mode: self.mode,
             position_reference_m: self.position_reference_m,
             position_command_m: self.position_command_m,
+            position_shift_m: self.applied_shift_m,
             motor_position_m: self.motor_position_m(),
             motor_angle_rad: self.encoder.position_counts() * self.derived.rad_per_count,
             speed_reference_rad_s: self.speed_reference_rad_s,

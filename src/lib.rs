@@ -14,6 +14,7 @@
 // `!(x < y)` is how this crate says "not less, or NaN": the negation is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod compensation;
 pub mod controller;
 pub mod filters;
 pub mod foc;

@@ -193,6 +193,18 @@ pub struct AlignmentParams {
     pub duration_s: f32,
 }
 
+/// Terminal-error compensation by the observer (see `compensation`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+pub struct CompensationParams {
+    /// Compensation on at power-up (it can be switched at run time).
+    pub enabled_at_start: bool,
+    /// Largest shift applied (the paper's largest compensation, 1.5 mm).
+    pub shift_max_m: f32,
+    /// Largest rate of change of the shift.
+    pub shift_rate_max_m_s: f32,
+}
+
 /// The whole parameter set of the control core.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
@@ -217,6 +229,7 @@ pub struct ControlParams {
     pub alignment: AlignmentParams,
     pub thermal: ThermalParams,
     pub ratings: RatingParams,
+    pub compensation: CompensationParams,
 }
 
 const CURRENT_BANDWIDTH_RAD_S: f32 = 2.0 * PI * 1000.0;
@@ -380,6 +393,11 @@ impl ControlParams {
             bus_max_voltage_v: 63.0,
             speed_max_rad_s: 2.0 * PI * 3000.0 / 60.0,
         },
+        // Off at power-up: the operator switches it on once the model in the
+        // log is the one trained for this rig. 20 mm/s: the full 0.3 mm sag is
+        // taken up in 15 ms, faster than the load changes, and a jump in the
+        // load estimate moves the rod at most 20 µm per millisecond.
+        compensation: CompensationParams { enabled_at_start: false, shift_max_m: 0.0015, shift_rate_max_m_s: 0.02 },
     };
 }
 
@@ -548,6 +566,15 @@ impl ControlParams {
             });
         }
         positive("control.faults.observer_shift_max_m", f.observer_shift_max_m)?;
+        let c = &self.compensation;
+        positive("control.compensation.shift_max_m", c.shift_max_m)?;
+        if c.shift_max_m > f.observer_shift_max_m {
+            return Err(ParamError {
+                field: "control.compensation.shift_max_m",
+                reason: "must be <= faults.observer_shift_max_m",
+            });
+        }
+        positive("control.compensation.shift_rate_max_m_s", c.shift_rate_max_m_s)?;
         let th = &self.thermal;
         positive("control.thermal.continuous_current_a", th.continuous_current_a)?;
         if th.continuous_current_a > l.current_max_a {

@@ -33,6 +33,8 @@ pub struct Telemetry {
     pub position_reference_m: f32,
     /// What the position loop was asked to reach (reference + shift, clamped).
     pub position_command_m: f32,
+    /// The compensation shift in that command (observer + external).
+    pub position_shift_m: f32,
     /// Motor-side position, `L θ_m / 2π`.
     pub motor_position_m: f32,
     /// Multi-turn mechanical motor angle.

@@ -19,6 +19,10 @@ impl LimitFlags {
     pub const STROKE: Self = Self(1 << 3);
     /// The I²t model folded the current limit back.
     pub const THERMAL: Self = Self(1 << 4);
+    /// The compensation shift hit its bound or rate limit.
+    pub const COMPENSATION: Self = Self(1 << 5);
+    /// An observer input lay outside the trained range and was clamped.
+    pub const OBSERVER_INPUT: Self = Self(1 << 6);
 
     pub fn insert(&mut self, other: Self) {
         self.0 |= other.0;
