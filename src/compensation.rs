@@ -80,7 +80,7 @@ impl Compensator {
                 // δ̂ is terminal − motor side: command the motor that much the
                 // other way.
                 let wanted = -pred.value_m;
-                let bounded = wanted.clamp(-c.shift_max_m, c.shift_max_m);
+                let bounded = crate::math::clamp(wanted, -c.shift_max_m, c.shift_max_m);
                 out.limited = bounded != wanted;
                 bounded
             }
@@ -88,7 +88,7 @@ impl Compensator {
             0.0
         };
         let step_max = c.shift_rate_max_m_s * dt_s;
-        let step = (target - self.shift_m).clamp(-step_max, step_max);
+        let step = crate::math::clamp(target - self.shift_m, -step_max, step_max);
         out.limited |= step != target - self.shift_m && self.enabled;
         self.shift_m += step;
         out.shift_m = self.shift_m;

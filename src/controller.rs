@@ -329,7 +329,7 @@ impl Controller {
                     return Err(CommandError::NotDisabled);
                 }
                 let counts = position_m / self.derived.metres_per_count;
-                self.encoder.set_count(libm::roundf(counts) as i32);
+                self.encoder.set_count(crate::math::round(counts) as i32);
                 self.hold_here();
                 Ok(CommandOutcome::Accepted)
             }
@@ -467,7 +467,7 @@ impl Controller {
             Mode::Running | Mode::Stopping => self.run_period(s, position_tick, speed_tick),
         };
         if position_tick {
-            self.cut_telemetry(s);
+            self.cut_telemetry();
         }
         out
     }
@@ -547,7 +547,7 @@ impl Controller {
                 self.limits.insert(LimitFlags::THERMAL);
             }
             let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
-            let iq_max = libm::sqrtf(iq_max2.max(0.0));
+            let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
             let out = self.speed_loop.step(
                 &self.params,
                 self.speed_reference_rad_s,
@@ -617,15 +617,14 @@ impl Controller {
         if out.speed_limited {
             self.limits.insert(LimitFlags::SPEED);
         }
+        let inertial_n = self.params.drive_train.moving_mass_kg * r.acceleration_m_s2;
+        let dt = self.derived.position_period_s;
         match s.load_cell_force_n {
-            Some(f) => self.load.set_measured(f),
+            Some(f) => {
+                self.load.update_measured(&self.params, f, inertial_n, dt);
+            }
             None => {
-                self.load.update(
-                    &self.params,
-                    self.current_dq.q,
-                    self.acceleration_reference_rad_s2,
-                    self.derived.position_period_s,
-                );
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n, dt);
             }
         }
     }
@@ -646,7 +645,7 @@ impl Controller {
         self.current_period(s, RotorState { electrical_angle_rad: 0.0, electrical_speed_rad_s: 0.0 })
     }
 
-    fn cut_telemetry(&mut self, s: &SensorSample) {
+    fn cut_telemetry(&mut self) {
         let mut limits = self.limits;
         limits.insert(self.pending_limits);
         self.telemetry = Telemetry {
@@ -666,10 +665,7 @@ impl Controller {
             voltage_q_v: self.voltage_dq.q,
             bus_voltage_v: self.bus_voltage_v,
             terminal_position_m: self.terminal_position_m,
-            load_force_estimate_n: match s.load_cell_force_n {
-                Some(f) if f.is_finite() => f,
-                _ => self.load.force_n(),
-            },
+            load_force_estimate_n: self.load.force_n(),
             faults: self.faults,
             limits,
         };

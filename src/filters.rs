@@ -30,7 +30,7 @@ impl Biquad {
         if !(corner_hz > 0.0) || !(corner_hz < 0.45 * rate_hz) {
             return Self::PASS;
         }
-        let k = libm::tanf(PI * corner_hz / rate_hz);
+        let k = crate::math::tan(PI * corner_hz / rate_hz);
         let q = core::f32::consts::FRAC_1_SQRT_2;
         let norm = 1.0 / (1.0 + k / q + k * k);
         let b0 = k * k * norm;

@@ -6,15 +6,18 @@ use crate::params::ControlParams;
 /// First-order low-passed force estimate at the nut.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LoadEstimator {
+    /// Low-passed force without the trajectory's inertial part.
+    slow_n: f32,
     force_n: f32,
 }
 
 impl LoadEstimator {
     pub const fn new() -> Self {
-        Self { force_n: 0.0 }
+        Self { slow_n: 0.0, force_n: 0.0 }
     }
 
     pub fn reset(&mut self) {
+        self.slow_n = 0.0;
         self.force_n = 0.0;
     }
 
@@ -25,20 +28,39 @@ impl LoadEstimator {
     /// Motor torque minus what accelerates the rotating parts, carried to the
     /// nut through the lead with the forward efficiency. Sign: positive when
     /// the cylinder pushes (a compressive load it holds up).
-    pub fn update(&mut self, p: &ControlParams, current_q_a: f32, acceleration_rad_s2: f32, dt_s: f32) -> f32 {
+    ///
+    /// `inertial_n` is the force the trajectory's own acceleration needs
+    /// (moving mass × reference acceleration). It bypasses the low-pass: the
+    /// filter then only smooths the slow part (weight, tilt, friction) and the
+    /// estimate keeps up with accelerations without feeding measured motion
+    /// back into the observer.
+    pub fn update(&mut self, p: &ControlParams, current_q_a: f32, acceleration_rad_s2: f32, inertial_n: f32, dt_s: f32) -> f32 {
         let torque = p.torque_constant_n_m_a() * current_q_a
             - p.drive_train.rotating_inertia_kg_m2 * acceleration_rad_s2;
         let force = torque * p.drive_train.screw_efficiency / p.metres_per_rad();
-        let alpha = dt_s * 2.0 * core::f32::consts::PI * p.load_estimate.filter_hz;
-        let alpha = if alpha < 1.0 { alpha } else { 1.0 };
-        if force.is_finite() {
-            self.force_n += alpha * (force - self.force_n);
-        }
-        self.force_n
+        self.filter(p, force, inertial_n, dt_s)
     }
 
-    /// A measured force replaces the estimate (load cell fitted).
-    pub fn set_measured(&mut self, force_n: f32) {
-        self.force_n = force_n;
+    /// A load-cell reading replaces the estimate, through the same low-pass:
+    /// the observer fed from it closes a loop through the rod's ≈29 Hz mode
+    /// (shift → motion → inertial force → predicted deformation → shift), and
+    /// the filter keeps that loop's gain below one.
+    pub fn update_measured(&mut self, p: &ControlParams, force_n: f32, inertial_n: f32, dt_s: f32) -> f32 {
+        self.filter(p, force_n, inertial_n, dt_s)
+    }
+
+    /// Complementary split: low-pass on `force − inertial`, `inertial` added
+    /// back unfiltered.
+    fn filter(&mut self, p: &ControlParams, force_n: f32, inertial_n: f32, dt_s: f32) -> f32 {
+        let alpha = dt_s * 2.0 * core::f32::consts::PI * p.load_estimate.filter_hz;
+        let alpha = if alpha < 1.0 { alpha } else { 1.0 };
+        let slow = force_n - inertial_n;
+        if slow.is_finite() {
+            self.slow_n += alpha * (slow - self.slow_n);
+        }
+        if inertial_n.is_finite() {
+            self.force_n = self.slow_n + inertial_n;
+        }
+        self.force_n
     }
 }

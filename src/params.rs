@@ -272,7 +272,7 @@ impl ControlParams {
 
     /// Largest current magnitude both Eq. 19 current bounds allow.
     pub fn current_limit_a(&self) -> f32 {
-        let copper = libm::sqrtf(
+        let copper = crate::math::sqrt(
             self.limits.copper_power_max_w / (1.5 * self.motor.phase_resistance_ohm),
         );
         if copper < self.limits.current_max_a { copper } else { self.limits.current_max_a }
@@ -376,7 +376,7 @@ impl ControlParams {
             // The paper's largest compensation, 1.5 mm, with a third more room.
             observer_shift_max_m: 0.002,
         },
-        load_estimate: LoadEstimateParams { filter_hz: 20.0 },
+        load_estimate: LoadEstimateParams { filter_hz: 5.0 },
         // Rated current: enough torque to pull the rotor against the screw's
         // friction, short enough not to heat it.
         alignment: AlignmentParams { current_a: 12.0, duration_s: 0.5 },

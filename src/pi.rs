@@ -56,7 +56,7 @@ impl Pi {
         let i_lo = lo - feedforward;
         let i_hi = hi - feedforward;
         if i_lo <= i_hi {
-            self.integral = self.integral.clamp(i_lo, i_hi);
+            self.integral = crate::math::clamp(self.integral, i_lo, i_hi);
         }
         PiOutput { value, saturated }
     }

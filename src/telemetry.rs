@@ -49,7 +49,8 @@ pub struct Telemetry {
     pub bus_voltage_v: f32,
     /// Linear-scale (piston-rod) position, if a scale is fitted.
     pub terminal_position_m: Option<f32>,
-    /// Axial force estimated from i_q (or the load cell when fitted).
+    /// Axial force from the load cell when fitted, else estimated from i_q;
+    /// low-passed at `load_estimate.filter_hz` (the observer's input).
     pub load_force_estimate_n: f32,
     pub faults: FaultSet,
     pub limits: LimitFlags,

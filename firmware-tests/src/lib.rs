@@ -18,6 +18,8 @@
 //! ```
 #![no_std]
 
+pub mod icount;
+
 use core::fmt;
 use core::panic::PanicInfo;
 use core::ptr;
@@ -109,6 +111,12 @@ pub fn report(file: &str, line: u32, what: &str, detail: fmt::Arguments) {
     close_line();
     hprintln!("    {}:{}: check failed: {}", file, line, what);
     hprintln!("        {}", detail);
+}
+
+/// Prints an information line (indented, under the running test).
+pub fn note(what: fmt::Arguments) {
+    close_line();
+    hprintln!("    {}", what);
 }
 
 /// `check!(condition)` or `check!(condition, "format", args..)`: on false,

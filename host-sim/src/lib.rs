@@ -3,10 +3,11 @@
 //! The plant (`plant`) stands in for the inverter, motor and mechanics; the
 //! control core from the firmware crate (`servo_core`) runs unchanged against
 //! it (`sim`). `scenario` says what the loop is asked to do, `report` what it
-//! leaves behind, `config` reads the rig file.
+//! leaves behind, `config` reads the rig file, `trainer` fits the error observer.
 
 pub mod config;
 pub mod plant;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod trainer;

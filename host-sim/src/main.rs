@@ -30,7 +30,15 @@ enum Cmd {
         /// Seed of the sensor noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Run the cycle again with the compiled-in error observer's
+        /// compensation on, and report before/after.
+        #[arg(long)]
+        observer: bool,
     },
+    /// Train the IBAS-BPNN error observer (paper §4.1) on a dataset and write
+    /// the firmware's model source. Writes summary.json, model.json, model.rs
+    /// and test_predictions.csv to --out.
+    Train(host_sim::trainer::TrainArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
@@ -52,7 +60,8 @@ enum Cmd {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::Paper { out, params, seed } => paper(out, params, seed),
+        Cmd::Paper { out, params, seed, observer } => paper(out, params, seed, observer),
+        Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
         }
@@ -94,14 +103,23 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<(
     Ok(())
 }
 
-fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64) -> Result<()> {
+fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64, observer: bool) -> Result<()> {
     let rig = RigConfig::load_or_nominal(params.as_ref())?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let cycle = StrokeCycle::paper(seed);
     let trace = run_stroke_cycle(&rig, &cycle)?;
-    let summary = metrics::paper_summary(&trace, seed, cycle.settle_s);
+    let mut summary = metrics::paper_summary(&trace, seed, cycle.settle_s);
     csv_out::write_trace(&trace, &out)?;
     plots::paper_plots(&trace, &out)?;
+    if observer {
+        let compensated = run_stroke_cycle(&rig, &StrokeCycle { compensation: true, ..cycle })?;
+        summary.observer = Some(metrics::observer_figures(&trace, &compensated, cycle.settle_s));
+        let dir = out.join("compensated");
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        csv_out::write_trace(&compensated, &dir)?;
+        plots::paper_plots(&compensated, &dir)?;
+        plots::compensation_plot(&trace, &compensated, &out)?;
+    }
     report::write_summary(&summary, &out)?;
     println!("{}", serde_json::to_string_pretty(&summary)?);
     println!("wrote {}/{{summary.json, telemetry.csv, plant.csv, *.png}}", out.display());

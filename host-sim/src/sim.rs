@@ -71,17 +71,54 @@ impl ClosedLoop {
         &self.last_sample
     }
 
+    /// The bus voltage the plant is driven with.
+    pub fn bus_voltage_v(&self) -> f64 {
+        self.bus_voltage_v
+    }
+
+    /// The command the core returned last period, applied over the next one.
+    pub fn pending_command(&self) -> &PwmCommand {
+        &self.pending
+    }
+
+    /// The plant's truth at the last sampling instant.
+    pub fn sampled_state(&self) -> &PlantState {
+        &self.sampled_state
+    }
+
     /// One PWM period: sample at the period start (the PWM centre), run the
     /// core, apply last period's duties over this period.
     pub fn step(&mut self) -> Telemetry {
-        let sample = self.plant.sample();
+        self.step_with(|_| {})
+    }
+
+    /// `step`, with `corrupt` given the sensor sample before the core sees
+    /// it (fault injection: noise bursts, stuck sensors, encoder glitches,
+    /// NaN). `last_sample` records what the core saw.
+    pub fn step_with(&mut self, corrupt: impl FnOnce(&mut SensorSample)) -> Telemetry {
+        let mut sample = self.plant.sample();
         self.sampled_state.clone_from(self.plant.state());
+        corrupt(&mut sample);
         let cmd = self.controller.step(&sample);
         self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
         self.pending = cmd;
         self.last_sample = sample;
         self.periods += 1;
         self.controller.telemetry()
+    }
+
+    /// One PWM period in which the core does not run (a hung ISR, a dead ADC
+    /// trigger): the timer keeps applying the duties it holds.
+    pub fn step_without_core(&mut self) {
+        self.sampled_state.clone_from(self.plant.state());
+        self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
+        self.periods += 1;
+    }
+
+    /// Replaces what the timer will apply next period, from outside the
+    /// core: a hardware break clearing the outputs, a reset disabling them.
+    pub fn override_pending(&mut self, cmd: PwmCommand) {
+        self.pending = cmd;
     }
 
     /// The plant's truth at the instant the last telemetry record describes.

@@ -840,7 +840,7 @@ impl IsrCtx {
         if cmd.enable && finite && !self.hw_trip {
             let arr = self.arr as f32;
             // PWM mode 2: the high side is on while CNT ≥ CCR.
-            let ccr = |d: f32| (libm::roundf((1.0 - d.clamp(0.0, MAX_DUTY)) * arr)) as u16;
+            let ccr = |d: f32| (servo_core::math::round((1.0 - servo_core::math::clamp(d, 0.0, MAX_DUTY)) * arr)) as u16;
             t.ccr(0).write(|w| w.set_ccr(ccr(a)));
             t.ccr(1).write(|w| w.set_ccr(ccr(b)));
             t.ccr(2).write(|w| w.set_ccr(ccr(c)));

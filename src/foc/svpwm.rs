@@ -30,17 +30,18 @@ pub fn svpwm(v: AlphaBeta, bus_voltage_v: f32) -> SvpwmOutput {
     let vmax = linear_limit_v(bus_voltage_v);
     let mag2 = v.alpha * v.alpha + v.beta * v.beta;
     let (v, limited) = if mag2 > vmax * vmax {
-        let k = vmax / libm::sqrtf(mag2);
+        let k = vmax / crate::math::sqrt(mag2);
         (AlphaBeta { alpha: v.alpha * k, beta: v.beta * k }, true)
     } else {
         (v, false)
     };
     let [a, b, c] = inverse_clarke(v);
-    let hi = a.max(b).max(c);
-    let lo = a.min(b).min(c);
+    use crate::math::{max, min};
+    let hi = max(max(a, b), c);
+    let lo = min(min(a, b), c);
     let mid = 0.5 * (hi + lo);
     let inv_bus = 1.0 / bus_voltage_v;
     // Rounding can put a leg a few ulp past the rails on the circle itself.
-    let duty = [a, b, c].map(|x| (0.5 + (x - mid) * inv_bus).clamp(0.0, 1.0));
+    let duty = [a, b, c].map(|x| crate::math::clamp(0.5 + (x - mid) * inv_bus, 0.0, 1.0));
     SvpwmOutput { duty, limited }
 }

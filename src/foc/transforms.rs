@@ -28,7 +28,7 @@ pub struct SinCos {
 
 impl SinCos {
     pub fn of(angle_rad: f32) -> Self {
-        let (sin, cos) = libm::sincosf(angle_rad);
+        let (sin, cos) = crate::math::sincos(angle_rad);
         Self { sin, cos }
     }
 }
@@ -56,9 +56,4 @@ pub fn inverse_park(v: Dq, sc: SinCos) -> AlphaBeta {
     AlphaBeta { alpha: v.d * sc.cos - v.q * sc.sin, beta: v.d * sc.sin + v.q * sc.cos }
 }
 
-/// Wraps an angle into [−π, π).
-pub fn wrap_pi(angle_rad: f32) -> f32 {
-    use core::f32::consts::PI;
-    let turns = libm::floorf((angle_rad + PI) * (0.5 / PI));
-    angle_rad - turns * (2.0 * PI)
-}
+pub use crate::math::wrap_pi;

@@ -41,7 +41,7 @@ impl EncoderTracker {
         }
         // The counter wraps at 2^16; as long as it moves less than half that
         // per period, the wrapping difference read as i16 is the true step.
-        let step = i32::from(raw.wrapping_sub(self.last_raw) as i16) * p.direction;
+        let step = i32::from(raw.wrapping_sub(self.last_raw) as i16).wrapping_mul(p.direction);
         self.last_raw = raw;
         self.count = self.count.wrapping_add(step);
         let implausible_step = step.unsigned_abs() > max_step_counts;
@@ -50,7 +50,7 @@ impl EncoderTracker {
         let err = (self.count.wrapping_sub(self.est_base)) as f32 - self.est_frac;
         self.est_frac += p.pll_kp_per_s * err * dt_s;
         self.speed_counts_s += p.pll_ki_per_s2 * err * dt_s;
-        let whole = libm::floorf(self.est_frac);
+        let whole = crate::math::floor(self.est_frac);
         self.est_base = self.est_base.wrapping_add(whole as i32);
         self.est_frac -= whole;
         EncoderUpdate { implausible_step }
@@ -76,7 +76,8 @@ impl EncoderTracker {
     /// Estimated mechanical angle within one revolution, radians in [0, 2π).
     pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
         let cpr = p.counts_per_rev as i32;
-        let in_rev = self.est_base.rem_euclid(cpr) as f32 + self.est_frac;
+        // counts_per_rev ≥ 1 by validation; 0 would give angle 0, not a panic.
+        let in_rev = self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac;
         in_rev * (2.0 * PI / p.counts_per_rev as f32)
     }
 

@@ -27,7 +27,7 @@ pub fn position_step(
     let w_max = p.limits.speed_max_rad_s;
     let speed_limited = !(w.abs() <= w_max);
     PositionLoopOutput {
-        speed_reference_rad_s: if w.is_nan() { 0.0 } else { w.clamp(-w_max, w_max) },
+        speed_reference_rad_s: if w.is_nan() { 0.0 } else { crate::math::clamp(w, -w_max, w_max) },
         acceleration_reference_rad_s2: acceleration_ff_m_s2 * rad_per_m,
         speed_limited,
     }

@@ -52,7 +52,7 @@ impl SpeedLoop {
         );
         // The filter sits after the limit, so its output can overshoot the
         // bound only by the filter's 4 % step overshoot; clamp that too.
-        let filtered = self.torque_filter.update(out.value).clamp(-current_limit_a, current_limit_a);
+        let filtered = crate::math::clamp(self.torque_filter.update(out.value), -current_limit_a, current_limit_a);
         SpeedLoopOutput { current_q_reference_a: filtered, current_limited: out.saturated }
     }
 }

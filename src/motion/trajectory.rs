@@ -58,7 +58,7 @@ impl ScurveMove {
         let dist = d.abs();
         // Phase lengths if the cruise speed is reached.
         let (mut tj, mut ta) = if v * j >= a * a { (a / j, a / j + v / a) } else {
-            let tj = libm::sqrtf(v / j);
+            let tj = crate::math::sqrt(v / j);
             (tj, 2.0 * tj)
         };
         let mut tv = dist / v - ta;
@@ -67,9 +67,9 @@ impl ScurveMove {
             tv = 0.0;
             if dist >= 2.0 * a * a * a / (j * j) {
                 tj = a / j;
-                ta = 0.5 * tj + libm::sqrtf(0.25 * tj * tj + dist / a);
+                ta = 0.5 * tj + crate::math::sqrt(0.25 * tj * tj + dist / a);
             } else {
-                tj = libm::cbrtf(dist / (2.0 * j));
+                tj = crate::math::cbrt(dist / (2.0 * j));
                 ta = 2.0 * tj;
             }
         }

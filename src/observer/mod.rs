@@ -115,7 +115,7 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
     for ((c, &sigma), &w) in model.centres.iter().zip(model.widths.iter()).zip(model.weights.iter()) {
         let d2: f32 = c.iter().zip(z.iter()).map(|(&ci, &zi)| (zi - ci) * (zi - ci)).sum();
         let g = 0.5 / (sigma * sigma);
-        acc += w * libm::expf(-d2 * g);
+        acc += w * crate::math::exp_neg(-d2 * g);
     }
     let value = model.output_offset + model.output_scale * acc;
     if valid && value.is_finite() {

@@ -46,6 +46,6 @@ impl defmt::Format for LimitFlags {
 
 /// Clamps a position into the stroke, saying whether it had to.
 pub fn clamp_to_stroke(position_m: f32, min_m: f32, max_m: f32) -> (f32, bool) {
-    let clamped = position_m.clamp(min_m, max_m);
+    let clamped = crate::math::clamp(position_m, min_m, max_m);
     (clamped, clamped != position_m)
 }

@@ -34,7 +34,7 @@ impl ThermalModel {
         if self.level <= p.foldback_start {
             return peak_a;
         }
-        let k = ((self.level - p.foldback_start) / (1.0 - p.foldback_start)).min(1.0);
+        let k = crate::math::min((self.level - p.foldback_start) / (1.0 - p.foldback_start), 1.0);
         peak_a + (p.continuous_current_a - peak_a) * k
     }
 

@@ -22,6 +22,12 @@
 //! The conduction pattern is decided at the start of each RK4 step and held
 //! through it; after the step a phase whose current crossed zero against its
 //! diode is clamped to zero (`enforce_blocking`). Diode drops are neglected.
+//!
+//! Open phase (fault injection: a broken motor lead or a blown leg): one
+//! phase is disconnected from its leg whatever the switches do. It carries
+//! no current, its terminal floats at neutral + back-EMF, and the neutral is
+//! set by the two phases still connected (`pwm_phase_voltages_open`,
+//! `diode_legs_open`, `force_open`).
 
 use super::frames;
 
@@ -54,6 +60,59 @@ const ZERO_CURRENT_A: f64 = 1e-9;
 pub fn pwm_phase_voltages(duty: [f64; 3], bus_v: f64) -> [f64; 3] {
     let mean = (duty[0] + duty[1] + duty[2]) / 3.0;
     [bus_v * (duty[0] - mean), bus_v * (duty[1] - mean), bus_v * (duty[2] - mean)]
+}
+
+/// Phase-to-neutral voltages of the switching inverter with phase `open`
+/// disconnected. The connected phases sit at `d V_bus − v_n` with the
+/// neutral `v_n = mean over connected phases of (d V_bus − e)` (balanced R,
+/// L; the open phase carries no current, so the two connected currents sum
+/// to zero); the open phase's voltage is its back-EMF, so its current stays
+/// zero (exactly for L_d = L_q; `force_open` removes the residue otherwise).
+pub fn pwm_phase_voltages_open(duty: [f64; 3], bus_v: f64, e_abc: [f64; 3], open: usize) -> [f64; 3] {
+    let mut sum = 0.0;
+    for k in 0..3 {
+        if k != open {
+            sum += duty[k] * bus_v - e_abc[k];
+        }
+    }
+    let neutral = 0.5 * sum;
+    std::array::from_fn(|k| if k == open { e_abc[k] } else { duty[k] * bus_v - neutral })
+}
+
+/// Diode conduction with phase `open` disconnected: only the other two
+/// phases can conduct, in series (their currents are equal and opposite).
+/// They keep conducting while current flows, and start when their
+/// line-to-line EMF beats the bus.
+pub fn diode_legs_open(i_abc: [f64; 3], e_abc: [f64; 3], bus_v: f64, open: usize) -> [Leg; 3] {
+    let (j, m) = match open {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let mut legs = [Leg::Open; 3];
+    let i = 0.5 * (i_abc[j] - i_abc[m]);
+    let (lj, lm) = if i > ZERO_CURRENT_A {
+        (Leg::Low, Leg::High)
+    } else if i < -ZERO_CURRENT_A {
+        (Leg::High, Leg::Low)
+    } else if e_abc[j] - e_abc[m] > bus_v {
+        (Leg::High, Leg::Low)
+    } else if e_abc[m] - e_abc[j] > bus_v {
+        (Leg::Low, Leg::High)
+    } else {
+        return legs;
+    };
+    legs[j] = lj;
+    legs[m] = lm;
+    legs
+}
+
+/// Sets the open phase's current to zero, sharing it equally between the
+/// other two (the projection that keeps the sum zero), as `enforce_blocking`
+/// does for a blocked diode.
+pub fn force_open(i_abc: [f64; 3], open: usize) -> [f64; 3] {
+    let share = 0.5 * i_abc[open];
+    std::array::from_fn(|k| if k == open { 0.0 } else { i_abc[k] + share })
 }
 
 /// Decides which diodes conduct, from the phase currents and back-EMFs at
@@ -179,18 +238,21 @@ fn extremes(e: [f64; 3]) -> (usize, usize) {
 /// and PM back-EMF `e_abc`.
 #[inline]
 pub fn dq_voltages(drive: &Drive, bus_v: f64, e_abc: [f64; 3], sin_e: f64, cos_e: f64) -> (f64, f64) {
-    let u = match drive {
-        Drive::Pwm(duty) => pwm_phase_voltages(*duty, bus_v),
-        Drive::Diodes(legs) => diode_phase_voltages(*legs, e_abc, bus_v),
-    };
-    frames::abc_to_dq(u, sin_e, cos_e)
+    frames::abc_to_dq(phase_voltages(drive, bus_v, e_abc), sin_e, cos_e)
 }
 
 /// Phase-to-neutral voltages for a drive mode (for the state record).
 pub fn phase_voltages(drive: &Drive, bus_v: f64, e_abc: [f64; 3]) -> [f64; 3] {
-    match drive {
-        Drive::Pwm(duty) => pwm_phase_voltages(*duty, bus_v),
-        Drive::Diodes(legs) => diode_phase_voltages(*legs, e_abc, bus_v),
+    phase_voltages_open(drive, bus_v, e_abc, None)
+}
+
+/// `phase_voltages` with an optional disconnected phase. With the switches
+/// off the open phase is already `Leg::Open` in the diode pattern.
+pub fn phase_voltages_open(drive: &Drive, bus_v: f64, e_abc: [f64; 3], open: Option<usize>) -> [f64; 3] {
+    match (drive, open) {
+        (Drive::Pwm(duty), None) => pwm_phase_voltages(*duty, bus_v),
+        (Drive::Pwm(duty), Some(k)) => pwm_phase_voltages_open(*duty, bus_v, e_abc, k),
+        (Drive::Diodes(legs), _) => diode_phase_voltages(*legs, e_abc, bus_v),
     }
 }
 

@@ -42,6 +42,8 @@ pub struct Inputs {
     pub bus_v: f64,
     /// Axial load on the rod, positive opposing extension.
     pub load_force_n: f64,
+    /// A phase disconnected from the inverter (fault injection), if any.
+    pub open_phase: Option<usize>,
 }
 
 /// Everything one right-hand-side evaluation computes.
@@ -144,9 +146,13 @@ impl Model {
         let (i_d, i_q, th_m, w_m, th_s, w_s, x, v) =
             (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
         let (sin_e, cos_e) = (self.motor.pole_pairs * th_m).sin_cos();
-        let (u_d, u_q) = match inp.drive {
-            Drive::Pwm(duty) => frames::abc_to_dq(inverter::pwm_phase_voltages(duty, inp.bus_v), sin_e, cos_e),
-            Drive::Diodes(_) => {
+        let (u_d, u_q) = match (inp.drive, inp.open_phase) {
+            (Drive::Pwm(duty), None) => frames::abc_to_dq(inverter::pwm_phase_voltages(duty, inp.bus_v), sin_e, cos_e),
+            (Drive::Pwm(duty), Some(k)) => {
+                let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
+                frames::abc_to_dq(inverter::pwm_phase_voltages_open(duty, inp.bus_v, e_abc, k), sin_e, cos_e)
+            }
+            (Drive::Diodes(_), _) => {
                 let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
                 inverter::dq_voltages(&inp.drive, inp.bus_v, e_abc, sin_e, cos_e)
             }

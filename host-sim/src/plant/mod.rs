@@ -97,6 +97,8 @@ pub struct Plant {
     force_guess: f64,
     max_step_s: f64,
     duty_saturation_count: u64,
+    /// A phase disconnected from the inverter (fault injection).
+    open_phase: Option<usize>,
     sensors: sensors::Sensors,
     state: PlantState,
 }
@@ -131,6 +133,7 @@ impl Plant {
             drive: Drive::Pwm([0.5; 3]),
             force_guess: 0.0,
             duty_saturation_count: 0,
+            open_phase: None,
             state: PlantState::default(),
             params,
         };
@@ -167,6 +170,27 @@ impl Plant {
         self.external_force_n = f;
     }
 
+    /// Disconnects phase `Some(k)` (0 = a, 1 = b, 2 = c) from the inverter, a
+    /// broken lead or a dead leg, or reconnects all with `None`. The open
+    /// phase's current is forced to zero at once (a lead that breaks under
+    /// current arcs for microseconds; the model skips that).
+    ///
+    /// # Panics
+    /// If `k > 2` (a caller bug).
+    pub fn set_open_phase(&mut self, phase: Option<usize>) {
+        assert!(phase.is_none_or(|k| k < 3), "open phase {phase:?}: phases are 0, 1, 2");
+        self.open_phase = phase;
+        if let Some(k) = phase {
+            self.force_open_phase(k);
+        }
+        self.refresh_state();
+    }
+
+    /// The disconnected phase, if any.
+    pub fn open_phase(&self) -> Option<usize> {
+        self.open_phase
+    }
+
     /// Integrates `duration_s` with `cmd` applied, in equal RK4 steps no
     /// longer than `PlantParams::max_step_s()`.
     ///
@@ -194,12 +218,16 @@ impl Plant {
             let h = duration_s / steps;
             for _ in 0..steps as u64 {
                 self.drive = self.drive_for(duty, bus_voltage_v);
-                let inputs = Inputs { drive: self.drive, bus_v: bus_voltage_v, load_force_n: load };
+                let inputs =
+                    Inputs { drive: self.drive, bus_v: bus_voltage_v, load_force_n: load, open_phase: self.open_phase };
                 let model = &self.model;
                 let guess = &mut self.force_guess;
                 self.x = integrator::rk4_step(&self.x, h, |s| model.evaluate(s, &inputs, guess).deriv);
-                if let Drive::Diodes(legs) = self.drive {
-                    self.enforce_diode_blocking(legs);
+                match (self.drive, self.open_phase) {
+                    // The open phase is `Leg::Open` in the diode pattern.
+                    (Drive::Diodes(legs), _) => self.enforce_diode_blocking(legs),
+                    (Drive::Pwm(_), Some(k)) => self.force_open_phase(k),
+                    (Drive::Pwm(_), None) => {}
                 }
                 self.time_s += h;
             }
@@ -216,7 +244,10 @@ impl Plant {
             Some(d) => Drive::Pwm(d),
             None => {
                 let (i_abc, e_abc) = self.model.currents_and_emf(&self.x);
-                Drive::Diodes(inverter::diode_legs(i_abc, e_abc, bus_voltage_v))
+                Drive::Diodes(match self.open_phase {
+                    None => inverter::diode_legs(i_abc, e_abc, bus_voltage_v),
+                    Some(k) => inverter::diode_legs_open(i_abc, e_abc, bus_voltage_v, k),
+                })
             }
         }
     }
@@ -280,7 +311,15 @@ impl Plant {
     }
 
     fn inputs(&self) -> Inputs {
-        Inputs { drive: self.drive, bus_v: self.bus_v, load_force_n: self.load_force_n() }
+        Inputs { drive: self.drive, bus_v: self.bus_v, load_force_n: self.load_force_n(), open_phase: self.open_phase }
+    }
+
+    fn force_open_phase(&mut self, k: usize) {
+        let (sin_e, cos_e) = (self.model.motor.pole_pairs * self.x[THETA_M]).sin_cos();
+        let i_abc = frames::dq_to_abc(self.x[I_D], self.x[I_Q], sin_e, cos_e);
+        let (d, q) = frames::abc_to_dq(inverter::force_open(i_abc, k), sin_e, cos_e);
+        self.x[I_D] = d;
+        self.x[I_Q] = q;
     }
 
     /// Duties the power stage will actually produce. A timer compare
@@ -337,7 +376,7 @@ impl Plant {
             coupling_torque_n_m: e.coupling_torque,
             electrical_angle_rad: (m.motor.pole_pairs * x[THETA_M]).rem_euclid(std::f64::consts::TAU),
             phase_current_a: frames::dq_to_abc(x[I_D], x[I_Q], e.sin_e, e.cos_e),
-            phase_voltage_v: inverter::phase_voltages(&self.drive, self.bus_v, e_abc),
+            phase_voltage_v: inverter::phase_voltages_open(&self.drive, self.bus_v, e_abc, self.open_phase),
             u_d_v: e.u_d,
             u_q_v: e.u_q,
             load_force_n: inputs.load_force_n,

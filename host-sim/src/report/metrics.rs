@@ -26,8 +26,8 @@ pub struct PaperSummary {
     /// after enabling (the settle period; a real vertical axis holds a brake
     /// until then).
     pub enable_sag_max_um: f64,
-    /// Terminal (piston-rod) position minus the trajectory reference, whole
-    /// run: what the grating scale shows the semi-closed loop leaves.
+    /// Terminal (piston-rod) position minus the trajectory reference, from
+    /// the first move on: what the grating scale shows the loop leaves.
     pub terminal_error_rms_mm: f64,
     pub terminal_error_max_mm: f64,
     /// Terminal minus motor-side position (deformation + lost motion).
@@ -45,6 +45,64 @@ pub struct PaperSummary {
     pub seed: u64,
     /// Set when the run stopped early; the figures then cover only what ran.
     pub aborted: Option<String>,
+    /// With `--observer`: the same run again with compensation on.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub observer: Option<ObserverFigures>,
+}
+
+/// Closed-loop effect of the compiled-in observer (`paper --observer`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ObserverFigures {
+    /// The compiled model's held-out RMSE, as the trainer measured it (f64).
+    pub observer_rmse_um_heldout: f64,
+    pub observer_dataset: String,
+    pub terminal_error_max_mm_before: f64,
+    pub terminal_error_rms_mm_before: f64,
+    pub terminal_error_max_mm_after: f64,
+    pub terminal_error_rms_mm_after: f64,
+    /// `100·(1 − after/before)` on the maximum terminal error.
+    pub terminal_error_max_reduction_pct: f64,
+    /// Mean |terminal length − reference length| / reference length, in
+    /// percent, over the moving legs; length = leg base (0.60 m, Table 3) +
+    /// position, as the paper's Table 2 evidently measures it.
+    pub mape_before: f64,
+    pub mape_after: f64,
+    /// Largest shift the compensation applied.
+    pub compensation_max_mm: f64,
+    pub compensation_aborted: Option<String>,
+}
+
+/// MAPE on terminal length over the moving legs, percent.
+pub fn length_mape_pct(trace: &RunTrace) -> f64 {
+    use crate::scenario::dataset::LEG_BASE_LENGTH_M;
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (t, x) in trace.telemetry.iter().zip(&trace.truth).filter(|(_, x)| x.direction != Direction::Hold) {
+        let reference = LEG_BASE_LENGTH_M + f64::from(t.position_reference_m);
+        let measured = LEG_BASE_LENGTH_M + x.terminal_position_m;
+        sum += (measured - reference).abs() / reference;
+        n += 1;
+    }
+    if n == 0 { 0.0 } else { 100.0 * sum / n as f64 }
+}
+
+/// Compares a run without and one with compensation.
+pub fn observer_figures(before: &RunTrace, after: &RunTrace, settle_s: f64) -> ObserverFigures {
+    let b = paper_summary(before, 0, settle_s);
+    let a = paper_summary(after, 0, settle_s);
+    let meta = servo_core::observer::model::META;
+    ObserverFigures {
+        observer_rmse_um_heldout: f64::from(meta.test_rmse_m) * 1e6,
+        observer_dataset: meta.dataset.to_string(),
+        terminal_error_max_mm_before: b.terminal_error_max_mm,
+        terminal_error_rms_mm_before: b.terminal_error_rms_mm,
+        terminal_error_max_mm_after: a.terminal_error_max_mm,
+        terminal_error_rms_mm_after: a.terminal_error_rms_mm,
+        terminal_error_max_reduction_pct: 100.0 * (1.0 - a.terminal_error_max_mm / b.terminal_error_max_mm),
+        mape_before: length_mape_pct(before),
+        mape_after: length_mape_pct(after),
+        compensation_max_mm: after.telemetry.iter().map(|t| f64::from(t.position_shift_m).abs()).fold(0.0, f64::max) * 1e3,
+        compensation_aborted: after.aborted.clone(),
+    }
 }
 
 pub fn paper_summary(trace: &RunTrace, seed: u64, settle_s: f64) -> PaperSummary {
@@ -54,8 +112,9 @@ pub fn paper_summary(trace: &RunTrace, seed: u64, settle_s: f64) -> PaperSummary
     };
     let (track_rms, track_max) = rms_and_max(pairs().filter(|(_, x)| x.time_s >= settle_s).map(tracking));
     let (_, sag_max) = rms_and_max(pairs().filter(|(_, x)| x.time_s < settle_s).map(tracking));
-    let (term_rms, term_max) =
-        rms_and_max(pairs().map(|(t, x)| x.terminal_position_m - f64::from(t.position_reference_m)));
+    let (term_rms, term_max) = rms_and_max(
+        pairs().filter(|(_, x)| x.time_s >= settle_s).map(|(t, x)| x.terminal_position_m - f64::from(t.position_reference_m)),
+    );
     let (_, deform_max) = rms_and_max(trace.truth.iter().map(|x| x.deformation_m));
     let leg_max = |d: Direction| {
         rms_and_max(
@@ -83,5 +142,6 @@ pub fn paper_summary(trace: &RunTrace, seed: u64, settle_s: f64) -> PaperSummary
         records: trace.telemetry.len(),
         seed,
         aborted: trace.aborted.clone(),
+        observer: None,
     }
 }

@@ -141,3 +141,32 @@ pub fn paper_plots(trace: &RunTrace, dir: &Path) -> Result<()> {
     )?;
     Ok(())
 }
+
+/// Terminal error along the stroke without and with compensation.
+pub fn compensation_plot(before: &RunTrace, after: &RunTrace, dir: &Path) -> Result<()> {
+    let leg = |trace: &RunTrace, d: Direction, name| Series {
+        name,
+        points: trace
+            .telemetry
+            .iter()
+            .zip(&trace.truth)
+            .filter(|(_, x)| x.direction == d)
+            .map(|(t, x)| {
+                let r = f64::from(t.position_reference_m);
+                (r * 1e3, (x.terminal_position_m - r) * 1e3)
+            })
+            .collect(),
+    };
+    line_chart(
+        &dir.join("compensation.png"),
+        "Terminal error before and after observer compensation",
+        "reference position [mm]",
+        "terminal error [mm]",
+        &[
+            leg(before, Direction::Elongation, "elongation, uncompensated"),
+            leg(before, Direction::Contraction, "contraction, uncompensated"),
+            leg(after, Direction::Elongation, "elongation, compensated"),
+            leg(after, Direction::Contraction, "contraction, compensated"),
+        ],
+    )
+}

@@ -36,12 +36,14 @@ pub struct StrokeCycle {
     pub settle_s: f64,
     pub dwell_s: f64,
     pub seed: u64,
+    /// Switch the observer's terminal-error compensation on after enabling.
+    pub compensation: bool,
 }
 
 impl StrokeCycle {
     /// The paper's run at rated load.
     pub fn paper(seed: u64) -> Self {
-        Self { top_m: 0.45, tilt_swing_deg: 30.0, payload_scale: 1.0, settle_s: 0.5, dwell_s: 0.5, seed }
+        Self { top_m: 0.45, tilt_swing_deg: 30.0, payload_scale: 1.0, settle_s: 0.5, dwell_s: 0.5, seed, compensation: false }
     }
 
     /// Tilt from horizontal, degrees, for a reference position on a leg.
@@ -88,6 +90,9 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
     let mut cl = ClosedLoop::new(controller, plant, bus);
     if let Err(e) = cl.controller.command(Command::Enable) {
         bail!("the drive refused to enable: {e:?}");
+    }
+    if let Err(e) = cl.controller.command(Command::SetCompensation { enabled: cycle.compensation }) {
+        bail!("the drive refused to switch compensation: {e:?}");
     }
 
     let divider = u64::from(rig.control.rates.position_loop_divider);

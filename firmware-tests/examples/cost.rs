@@ -1,0 +1,637 @@
+//! Cost of the control core on a Cortex-M4F, in executed instructions.
+//!
+//! Run by `firmware-tests/cost.sh` under `qemu-system-arm -icount shift=7`
+//! (see `firmware_tests::icount` and docs/cost.md). Not a test: it asserts
+//! no budget, it prints figures — a table for people and one `JSON {...}`
+//! line that cost.sh puts into `out/cost/summary.json`.
+//!
+//! What is measured:
+//! - `Controller::step` in closed loop with a rigid PMSM plant during a
+//!   10 mm move (the plant is not counted), split by period kind: current
+//!   loop only, speed + current, position + speed + current (+ telemetry);
+//!   and a step with the bridge off;
+//! - the error observer's forward pass (`observer::evaluate`), which the
+//!   position period will run once it is wired into the controller;
+//! - the pieces, one call at a time, to show where the instructions go;
+//! - two replacements the core could use (a single-precision polynomial
+//!   sin/cos and the FPU's `vsqrt.f32`), to show what they would save.
+//!
+//! Every figure is the mean over many calls with varying inputs; each call
+//! is counted exactly (one SysTick read before, one after; the read itself
+//! is subtracted). Calls go through `#[inline(never)]` wrappers, so each
+//! figure includes one call and return, as the ISR pays them.
+#![no_std]
+#![no_main]
+
+use core::f32::consts::PI;
+use core::hint::black_box;
+
+use cortex_m_semihosting::hprintln;
+use firmware_tests::icount::{Meter, Stats};
+use golden::plant::{Noise, RigidPlant};
+use golden::CLOSED_LOOP_SCRIPT;
+use servo_core::foc::current_loop::RotorState;
+use servo_core::foc::{
+    clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, Dq, SinCos,
+};
+use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
+use servo_core::observer;
+use servo_core::pi::Pi;
+use servo_core::{ControlParams, Controller, Mode, PwmCommand, SensorSample};
+
+/// Whether `Controller::step` runs the error observer in its position
+/// periods (it does, with compensation on, which the closed-loop script
+/// switches on). Were it `false`, the "position with observer" figures would
+/// add one measured `observer::evaluate` to the measured position period.
+const OBSERVER_IN_STEP: bool = true;
+
+// ---- wrappers: one opaque call each ---------------------------------------
+
+#[inline(never)]
+fn step(c: &mut Controller, s: &SensorSample) -> PwmCommand {
+    c.step(s)
+}
+
+#[inline(never)]
+fn sincos(x: f32) -> (f32, f32) {
+    libm::sincosf(x)
+}
+
+#[inline(never)]
+fn sqrt(x: f32) -> f32 {
+    libm::sqrtf(x)
+}
+
+#[inline(never)]
+fn expf(x: f32) -> f32 {
+    libm::expf(x)
+}
+
+#[inline(never)]
+fn wrap(x: f32) -> f32 {
+    wrap_pi(x)
+}
+
+#[inline(never)]
+fn clarke_park(abc: [f32; 3], sc: SinCos) -> Dq {
+    park(clarke(abc), sc)
+}
+
+#[inline(never)]
+fn pi_update(pi: &mut Pi, p: &ControlParams, e: f32) -> f32 {
+    pi.update(&p.current_pi, e, 0.1, -20.0, 20.0, 50e-6).value
+}
+
+#[inline(never)]
+fn svpwm_call(v: AlphaBeta, bus: f32) -> [f32; 3] {
+    svpwm(v, bus).duty
+}
+
+#[inline(never)]
+fn inverse_park_call(v: Dq, sc: SinCos) -> AlphaBeta {
+    inverse_park(v, sc)
+}
+
+#[inline(never)]
+fn current_loop(
+    cl: &mut CurrentLoop,
+    p: &ControlParams,
+    abc: [f32; 3],
+    r: Dq,
+    rotor: RotorState,
+    bus: f32,
+) -> [f32; 3] {
+    cl.step(p, abc, r, rotor, bus).duty
+}
+
+#[inline(never)]
+fn encoder(e: &mut EncoderTracker, p: &ControlParams, raw: u16) -> bool {
+    e.update(&p.encoder, raw, 50e-6, 2000).implausible_step
+}
+
+#[inline(never)]
+fn speed_loop(sl: &mut SpeedLoop, p: &ControlParams, w_ref: f32, w: f32) -> f32 {
+    sl.step(p, w_ref, 100.0, w, 30.0).current_q_reference_a
+}
+
+#[inline(never)]
+fn trajectory(m: &ScurveMove, t: f32) -> f32 {
+    m.sample(t).position_m
+}
+
+#[inline(never)]
+fn position(p: &ControlParams, cmd: f32, meas: f32) -> f32 {
+    position_step(p, cmd, 0.1, 1.0, meas).speed_reference_rad_s
+}
+
+#[inline(never)]
+fn observe(x: [f32; 4]) -> f32 {
+    observer::evaluate(&observer::model::MODEL, x).value_m
+}
+
+/// The FPU's square root (one instruction; correctly rounded, so it gives
+/// the same result as libm's software `sqrtf`).
+#[inline(never)]
+fn vsqrt(x: f32) -> f32 {
+    let r: u32;
+    // SAFETY: register-only FPU instructions. (The `sreg` operand class is
+    // refused on this target for want of a `vfp2` feature flag, so the value
+    // goes through core registers and s15 is declared clobbered.)
+    unsafe {
+        core::arch::asm!(
+            "vmov s15, {x}",
+            "vsqrt.f32 s15, s15",
+            "vmov {r}, s15",
+            x = in(reg) x.to_bits(),
+            r = lateout(reg) r,
+            out("s15") _,
+            options(pure, nomem, nostack),
+        )
+    };
+    f32::from_bits(r)
+}
+
+/// A single-precision sin/cos for |x| ≲ 10⁴ rad: quadrant reduction with a
+/// two-part π/2, then minimax polynomials on [−π/4, π/4] (max error about
+/// 1e-7, i.e. 1–2 ulp near 1). What libm's `sincosf` costs on an FPU
+/// without double precision is mostly its f64 arithmetic (soft-float on
+/// the M4); this is what an f32-only version costs.
+#[inline(never)]
+fn sincos_poly(x: f32) -> (f32, f32) {
+    const TWO_OVER_PI: f32 = 0.636_619_77;
+    const PIO2_HI: f32 = 1.570_312_5; // exactly representable, few bits
+    const PIO2_LO: f32 = 4.838_267_9e-4;
+    let n = libm::rintf(x * TWO_OVER_PI);
+    let r = (x - n * PIO2_HI) - n * PIO2_LO;
+    let r2 = r * r;
+    let s = r + r * r2 * (-1.666_665_5e-1 + r2 * (8.332_161e-3 + r2 * -1.951_529_6e-4));
+    let c =
+        1.0 - 0.5 * r2 + r2 * r2 * (4.166_664_6e-2 + r2 * (-1.388_731_6e-3 + r2 * 2.443_315_7e-5));
+    match (n as i32) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+// ---- report ----------------------------------------------------------------
+
+struct Row {
+    key: &'static str,
+    what: &'static str,
+    mean: f64,
+    min: f64,
+    max: f64,
+    calls: u32,
+}
+
+fn row(m: &Meter, key: &'static str, what: &'static str, s: &Stats) -> Row {
+    let (mean, min, max) = s.insns(m);
+    Row {
+        key,
+        what,
+        mean,
+        min,
+        max,
+        calls: s.count,
+    }
+}
+
+/// Measures `call(input(i))` for `i in 0..n`, one call at a time; the
+/// input is prepared outside the measurement.
+fn each<I>(m: &Meter, n: u32, mut input: impl FnMut(u32) -> I, mut call: impl FnMut(I)) -> Stats {
+    let mut s = Stats::new();
+    for i in 0..n {
+        let x = black_box(input(i));
+        let (_, t) = m.measure(|| call(x));
+        s.add(t);
+    }
+    s
+}
+
+#[firmware_tests::entry]
+fn main() -> ! {
+    let m = Meter::calibrate();
+    hprintln!(
+        "calibration: {} SysTick ticks per instruction, reading the counter costs {} ticks ({})",
+        m.ticks_per_insn,
+        m.read_ticks,
+        if m.deterministic {
+            "deterministic: -icount is on"
+        } else {
+            "NOT deterministic: run under -icount"
+        }
+    );
+    if !m.deterministic {
+        firmware_tests::exit(false);
+    }
+
+    let p = ControlParams::DEFAULT;
+    let mut rows: [Option<Row>; 24] = Default::default();
+    let mut n_rows = 0usize;
+    let mut push = |r: Row| {
+        if let Some(slot) = rows.get_mut(n_rows) {
+            *slot = Some(r);
+            n_rows += 1;
+        }
+    };
+
+    // ---- Controller::step in closed loop ---------------------------------
+    let (mut cur, mut spd, mut pos, mut off) =
+        (Stats::new(), Stats::new(), Stats::new(), Stats::new());
+    let mut c = Controller::new(p);
+    let mut plant = RigidPlant::new(p, 48.0);
+    let mut noise = Noise::new(7);
+    let mut out = PwmCommand::OFF;
+    let periods = golden::CLOSED_LOOP_PERIODS;
+    let speed_div = p.rates.speed_loop_divider as usize;
+    let pos_div = p.rates.position_loop_divider as usize;
+    let mut faults_seen = false;
+    for k in 0..periods {
+        for (_, cmd) in CLOSED_LOOP_SCRIPT.iter().filter(|(at, _)| *at == k) {
+            let _ = c.command(*cmd);
+        }
+        plant.advance(&out);
+        let mut s = plant.sample();
+        for i in s.phase_current_a.iter_mut() {
+            *i += 0.03 * noise.next();
+        }
+        let running = c.mode() == Mode::Running;
+        let (o, t) = m.measure(|| step(&mut c, black_box(&s)));
+        out = black_box(o);
+        faults_seen |= !c.faults().is_empty();
+        // The controller counts periods from 1 at its first step.
+        let tick = k + 1;
+        if !running {
+            off.add(t);
+        } else if tick % pos_div == 0 {
+            pos.add(t);
+        } else if tick % speed_div == 0 {
+            spd.add(t);
+        } else {
+            cur.add(t);
+        }
+    }
+    push(row(
+        &m,
+        "step_current",
+        "Controller::step, current loop only (19 of 20 periods minus speed)",
+        &cur,
+    ));
+    push(row(
+        &m,
+        "step_speed",
+        "Controller::step, speed + current loop (every 4th)",
+        &spd,
+    ));
+    push(row(
+        &m,
+        "step_position",
+        "Controller::step, position + speed + current + telemetry (every 20th)",
+        &pos,
+    ));
+    push(row(
+        &m,
+        "step_bridge_off",
+        "Controller::step, bridge off (disabled)",
+        &off,
+    ));
+
+    // ---- observer ---------------------------------------------------------
+    let model = &observer::model::MODEL;
+    let obs_input = |i: u32| {
+        let mut x = [0.0f32; 4];
+        for (j, xj) in x.iter_mut().enumerate() {
+            let frac = ((i * (7 + 2 * j as u32)) % 101) as f32 / 100.0;
+            *xj = model.input_min[j] + frac * (model.input_max[j] - model.input_min[j]);
+        }
+        x
+    };
+    let obs_stats = each(&m, 400, obs_input, |x| {
+        black_box(observe(x));
+    });
+    push(row(
+        &m,
+        "observer_evaluate",
+        "observer::evaluate (the generated RBF model, 4 inputs)",
+        &obs_stats,
+    ));
+
+    // ---- pieces -----------------------------------------------------------
+    let angle = |i: u32| -PI + (i % 997) as f32 * (2.0 * PI / 997.0);
+    push(row(
+        &m,
+        "libm_sincosf",
+        "libm::sincosf, angles in [-pi, pi) (f64 inside: soft-float on the M4)",
+        &each(&m, 997, angle, |x| {
+            black_box(sincos(x));
+        }),
+    ));
+    push(row(
+        &m,
+        "poly_sincosf",
+        "f32 polynomial sin/cos (candidate), same angles",
+        &each(&m, 997, angle, |x| {
+            black_box(sincos_poly(x));
+        }),
+    ));
+    push(row(
+        &m,
+        "libm_sqrtf",
+        "libm::sqrtf (software on this target)",
+        &each(
+            &m,
+            500,
+            |i| 1.0 + i as f32 * 3.7,
+            |x| {
+                black_box(sqrt(x));
+            },
+        ),
+    ));
+    push(row(
+        &m,
+        "vsqrt",
+        "vsqrt.f32 (FPU instruction, candidate)",
+        &each(
+            &m,
+            500,
+            |i| 1.0 + i as f32 * 3.7,
+            |x| {
+                black_box(vsqrt(x));
+            },
+        ),
+    ));
+    push(row(
+        &m,
+        "libm_expf",
+        "libm::expf (the observer runs one per hidden unit)",
+        &each(
+            &m,
+            500,
+            |i| -(i as f32) * 0.01,
+            |x| {
+                black_box(expf(x));
+            },
+        ),
+    ));
+    push(row(
+        &m,
+        "wrap_pi",
+        "wrap_pi (libm floorf)",
+        &each(
+            &m,
+            500,
+            |i| angle(i) * 3.0,
+            |x| {
+                black_box(wrap(x));
+            },
+        ),
+    ));
+    let sc = SinCos { sin: 0.6, cos: 0.8 };
+    push(row(
+        &m,
+        "clarke_park",
+        "clarke + park",
+        &each(
+            &m,
+            500,
+            |i| [i as f32 * 0.01, -1.0, 0.5],
+            |x| {
+                black_box(clarke_park(x, sc));
+            },
+        ),
+    ));
+    push(row(
+        &m,
+        "inverse_park",
+        "inverse park",
+        &each(
+            &m,
+            500,
+            |i| Dq {
+                d: 1.0,
+                q: i as f32 * 0.01,
+            },
+            |x| {
+                black_box(inverse_park_call(x, sc));
+            },
+        ),
+    ));
+    let mut pi = Pi::new();
+    push(row(
+        &m,
+        "pi_update",
+        "Pi::update (one axis)",
+        &each(
+            &m,
+            500,
+            |i| (i % 50) as f32 * 0.1 - 2.5,
+            |x| {
+                black_box(pi_update(&mut pi, &p, x));
+            },
+        ),
+    ));
+    let ab = |i: u32| {
+        let a = angle(i);
+        AlphaBeta {
+            alpha: 10.0 * libm::cosf(a),
+            beta: 10.0 * libm::sinf(a),
+        }
+    };
+    push(row(
+        &m,
+        "svpwm",
+        "svpwm (min-max injection, inside the circle)",
+        &each(&m, 500, ab, |x| {
+            black_box(svpwm_call(x, 48.0));
+        }),
+    ));
+    let mut cl = CurrentLoop::new();
+    let cl_input = |i: u32| {
+        let a = angle(i);
+        let abc = [
+            3.0 * libm::cosf(a),
+            3.0 * libm::cosf(a - 2.1),
+            3.0 * libm::cosf(a + 2.1),
+        ];
+        (
+            abc,
+            RotorState {
+                electrical_angle_rad: a,
+                electrical_speed_rad_s: 400.0,
+            },
+        )
+    };
+    push(row(
+        &m,
+        "current_loop",
+        "CurrentLoop::step (2 sincosf, 1 sqrtf, 2 PI, SVPWM)",
+        &each(&m, 997, cl_input, |(abc, rotor)| {
+            black_box(current_loop(
+                &mut cl,
+                &p,
+                abc,
+                Dq { d: 0.0, q: 3.0 },
+                rotor,
+                48.0,
+            ));
+        }),
+    ));
+    let mut enc = EncoderTracker::new();
+    push(row(
+        &m,
+        "encoder_update",
+        "EncoderTracker::update (unwrap + PLL)",
+        &each(
+            &m,
+            500,
+            |i| (i * 13) as u16,
+            |x| {
+                black_box(encoder(&mut enc, &p, x));
+            },
+        ),
+    ));
+    let mut sl = SpeedLoop::new(&p);
+    push(row(
+        &m,
+        "speed_loop",
+        "SpeedLoop::step (PI + feedforward + torque filter)",
+        &each(
+            &m,
+            500,
+            |i| 95.0 + (i % 10) as f32,
+            |x| {
+                black_box(speed_loop(&mut sl, &p, 100.0, x));
+            },
+        ),
+    ));
+    let mv = ScurveMove::plan(0.1, 0.11, &p.trajectory);
+    let dur = mv.duration_s();
+    push(row(
+        &m,
+        "trajectory_sample",
+        "ScurveMove::sample",
+        &each(
+            &m,
+            500,
+            |i| dur * i as f32 / 500.0,
+            |x| {
+                black_box(trajectory(&mv, x));
+            },
+        ),
+    ));
+    push(row(
+        &m,
+        "position_step",
+        "position_step (P + feedforward)",
+        &each(
+            &m,
+            500,
+            |i| 0.1 + i as f32 * 1e-6,
+            |x| {
+                black_box(position(&p, 0.1, x));
+            },
+        ),
+    ));
+
+    // ---- derived figures -------------------------------------------------
+    let mean = |st: &Stats| st.insns(&m).0;
+    let speed_increment = mean(&spd) - mean(&cur);
+    let position_increment = mean(&pos) - mean(&spd);
+    let observer_mean = obs_stats.insns(&m).0;
+    // Until Controller::step runs the observer itself, the position period
+    // with the observer is the measured period plus one measured evaluation.
+    let position_with_observer = if OBSERVER_IN_STEP {
+        mean(&pos)
+    } else {
+        mean(&pos) + observer_mean
+    };
+    let position_increment_with_observer = if OBSERVER_IN_STEP {
+        position_increment
+    } else {
+        position_increment + observer_mean
+    };
+
+    // ---- print --------------------------------------------------------------
+    hprintln!(
+        "{:<20} {:>9} {:>8} {:>8} {:>6}  what",
+        "figure",
+        "mean",
+        "min",
+        "max",
+        "calls"
+    );
+    for r in rows.iter().flatten() {
+        hprintln!(
+            "{:<20} {:>9.1} {:>8.0} {:>8.0} {:>6}  {}",
+            r.key,
+            r.mean,
+            r.min,
+            r.max,
+            r.calls,
+            r.what
+        );
+    }
+    hprintln!(
+        "speed loop alone (speed period - current period):         {:>8.1}",
+        speed_increment
+    );
+    hprintln!(
+        "position loop alone (position period - speed period):    {:>8.1}",
+        position_increment
+    );
+    hprintln!(
+        "position period with the observer{}: {:>8.1}  (position loop alone with it: {:.1})",
+        if OBSERVER_IN_STEP {
+            ""
+        } else {
+            " (period + one evaluation)"
+        },
+        position_with_observer,
+        position_increment_with_observer
+    );
+    if faults_seen {
+        hprintln!("warning: a fault latched during the closed-loop run: the step figures are not of a running drive");
+    }
+    // One JSON object for cost.sh, line by line behind a `JSON ` prefix.
+    hprintln!("JSON {{");
+    hprintln!("JSON   \"method\": \"qemu-system-arm -machine mps2-an386 -icount shift=7, SysTick (processor clock) read before and after each call, calibrated on a loop of known length\",");
+    hprintln!("JSON   \"icount_ticks_per_insn\": {},", m.ticks_per_insn);
+    hprintln!("JSON   \"closed_loop_faults\": {},", faults_seen);
+    hprintln!("JSON   \"observer_in_step\": {},", OBSERVER_IN_STEP);
+    hprintln!("JSON   \"per_period\": {{");
+    hprintln!("JSON     \"current\": {:.1},", mean(&cur));
+    hprintln!("JSON     \"speed\": {:.1},", mean(&spd));
+    hprintln!("JSON     \"position\": {:.1},", mean(&pos));
+    hprintln!(
+        "JSON     \"position_with_observer\": {:.1},",
+        position_with_observer
+    );
+    hprintln!("JSON     \"speed_loop_alone\": {:.1},", speed_increment);
+    hprintln!(
+        "JSON     \"position_loop_alone\": {:.1},",
+        position_increment
+    );
+    hprintln!(
+        "JSON     \"position_loop_alone_with_observer\": {:.1}",
+        position_increment_with_observer
+    );
+    hprintln!("JSON   }},");
+    hprintln!("JSON   \"insns\": {{");
+    let n = rows.iter().flatten().count();
+    for (i, r) in rows.iter().flatten().enumerate() {
+        hprintln!(
+            "JSON     \"{}\": {{\"mean\": {:.1}, \"min\": {:.0}, \"max\": {:.0}, \"calls\": {}}}{}",
+            r.key,
+            r.mean,
+            r.min,
+            r.max,
+            r.calls,
+            if i + 1 < n { "," } else { "" }
+        );
+    }
+    hprintln!("JSON   }}");
+    hprintln!("JSON }}");
+    firmware_tests::exit(!faults_seen)
+}

@@ -1,0 +1,111 @@
+//! No panic on the control path, proven at link time (the "panic-never"
+//! technique).
+//!
+//! The panic handler below calls `__panic_reachable_on_the_control_path`,
+//! which exists nowhere. The optimiser (release profile, fat LTO) deletes
+//! every panic it can prove unreachable; if any panic is still reachable
+//! from the calls in `main`, the handler stays in the image and the link
+//! fails naming that symbol. `bash firmware-tests/panic-never/check.sh`
+//! builds it and, on failure, lists the functions that still call into
+//! the panic machinery.
+//!
+//! Everything the interrupt and the main task call on a `Controller` is
+//! called here, with inputs read through `read_volatile` so the compiler
+//! knows nothing about them — not even the parameters: the proof is for any
+//! `ControlParams` and any `SensorSample`, NaN and infinities included.
+#![no_std]
+#![no_main]
+
+use core::panic::PanicInfo;
+use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
+
+use cortex_m_rt::entry;
+use servo_core::{Command, ControlParams, Controller, PwmCommand, SensorSample};
+
+extern "C" {
+    /// Deliberately undefined: referenced only if a panic is reachable.
+    fn __panic_reachable_on_the_control_path() -> !;
+}
+
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    // SAFETY: never runs; the link fails if this call survives optimisation.
+    unsafe { __panic_reachable_on_the_control_path() }
+}
+
+// Opaque inputs and a sink for outputs.
+static mut PARAMS: ControlParams = ControlParams::DEFAULT;
+static mut SAMPLE: SensorSample = SensorSample::idle(48.0);
+static mut SELECT: u32 = 0;
+static mut ARG: f32 = 0.0;
+static mut SINK: [u32; 8] = [0; 8];
+
+fn opaque<T: Copy>(p: *const T) -> T {
+    // SAFETY: single-threaded, the statics are always initialised.
+    unsafe { read_volatile(p) }
+}
+
+fn sink(slot: usize, v: u32) {
+    // SAFETY: as above; `slot & 7` keeps the index in range.
+    unsafe { write_volatile(addr_of_mut!(SINK[slot & 7]), v) }
+}
+
+fn out(c: &PwmCommand) {
+    sink(0, c.duty[0].to_bits());
+    sink(1, c.duty[1].to_bits());
+    sink(2, c.duty[2].to_bits());
+    sink(3, c.enable as u32);
+}
+
+fn command(c: &mut Controller) {
+    let arg = opaque(addr_of!(ARG));
+    let cmd = match opaque(addr_of!(SELECT)) % 8 {
+        0 => Command::Enable,
+        1 => Command::Disable,
+        2 => Command::MoveTo { position_m: arg },
+        3 => Command::SetHome { position_m: arg },
+        4 => Command::Align,
+        5 => Command::ClearFaults,
+        6 => Command::SetCompensation { enabled: arg > 0.0 },
+        _ => Command::SetPositionShift { shift_m: arg },
+    };
+    sink(4, c.command(cmd).is_ok() as u32);
+}
+
+#[entry]
+fn main() -> ! {
+    let params = opaque(addr_of!(PARAMS));
+    let mut c = match opaque(addr_of!(SELECT)) {
+        0 => Controller::new(params),
+        _ => match Controller::try_new(params) {
+            Ok(c) => c,
+            Err(e) => {
+                sink(5, e.field.len() as u32);
+                Controller::new(ControlParams::DEFAULT)
+            }
+        },
+    };
+    loop {
+        // The interrupt's calls.
+        let s = opaque(addr_of!(SAMPLE));
+        out(&c.step(&s));
+        if opaque(addr_of!(SELECT)) == 99 {
+            c.report_isr_overrun();
+        }
+        // The main task's calls.
+        command(&mut c);
+        let t = c.telemetry();
+        sink(
+            5,
+            t.position_command_m.to_bits() ^ t.faults.bits() as u32 ^ t.limits.bits() as u32,
+        );
+        sink(
+            6,
+            c.mode() as u32 ^ c.faults().bits() as u32 ^ c.move_in_progress() as u32,
+        );
+        sink(
+            7,
+            c.motor_position_m().to_bits() ^ c.speed_rad_s().to_bits(),
+        );
+    }
+}

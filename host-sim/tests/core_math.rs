@@ -1,0 +1,55 @@
+//! The core's f32 maths against f64 references.
+
+use servo_core::math::{cbrt, clamp, exp_neg, floor, round, sincos, sqrt, tan};
+
+#[test]
+fn sincos_is_within_2e7_of_f64_over_many_turns() {
+    let mut worst: f64 = 0.0;
+    for k in -200_000..200_000 {
+        let x = k as f32 * 1.3e-3; // ±260 rad
+        let (s, c) = sincos(x);
+        let xd = f64::from(x);
+        worst = worst.max((f64::from(s) - xd.sin()).abs()).max((f64::from(c) - xd.cos()).abs());
+    }
+    assert!(worst < 2e-7, "worst {worst:e}");
+}
+
+#[test]
+fn exp_neg_is_within_3e7_relative_of_f64() {
+    for k in 0..87_000 {
+        let x = -(k as f32) * 1e-3;
+        let want = f64::from(x).exp();
+        let got = f64::from(exp_neg(x));
+        assert!(((got - want) / want).abs() < 3e-7, "exp({x}) = {got} vs {want}");
+    }
+    assert_eq!(exp_neg(-100.0), 0.0);
+    assert_eq!(exp_neg(f32::NAN), 0.0);
+}
+
+#[test]
+fn cbrt_tan_sqrt_match_f64() {
+    for k in 1..10_000 {
+        let x = k as f32 * 1.7e-4;
+        assert!((f64::from(cbrt(x)) - f64::from(x).cbrt()).abs() < 2e-7 * f64::from(x).cbrt(), "cbrt {x}");
+        assert!((f64::from(cbrt(-x)) + f64::from(x).cbrt()).abs() < 2e-7 * f64::from(x).cbrt());
+        assert_eq!(sqrt(x), libm::sqrtf(x), "sqrt must be the correctly rounded one");
+        let t = x * 0.9; // < π/2
+        assert!((f64::from(tan(t)) - f64::from(t).tan()).abs() < 1e-6 * (1.0 + f64::from(t).tan().powi(2)));
+    }
+}
+
+#[test]
+fn floor_round_clamp_never_surprise() {
+    for (x, f, r) in [(2.5_f32, 2.0, 3.0), (-2.5, -3.0, -3.0), (-0.2, -1.0, 0.0), (7.0, 7.0, 7.0), (-7.0, -7.0, -7.0)] {
+        assert_eq!(floor(x), f, "floor {x}");
+        assert_eq!(round(x), r, "round {x}");
+    }
+    assert_eq!(clamp(f32::NAN, -1.0, 1.0), -1.0);
+    assert_eq!(clamp(5.0, -1.0, 1.0), 1.0);
+    assert_eq!(clamp(-5.0, -1.0, 1.0), -1.0);
+    // Inverted bounds: no panic, and the result is one of them.
+    for x in [-3.0, 0.0, 3.0, f32::NAN] {
+        let y = clamp(x, 1.0, -1.0);
+        assert!(y == 1.0 || y == -1.0, "{x} -> {y}");
+    }
+}

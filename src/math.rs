@@ -1,0 +1,146 @@
+//! Single-precision maths for the control path.
+//!
+//! Why not `libm` here: its `sincosf`, `tanf` and `cbrtf` compute in `f64`,
+//! which the Cortex-M4F's single-precision FPU runs as software (≈2 400
+//! instructions per `sincosf`), and `sqrtf`/`fmaxf` are library calls where
+//! the FPU has an instruction or a compare will do. Everything here is plain
+//! f32 arithmetic (or the FPU's `vsqrt`), so the host and the target compute
+//! bit-identical results, which the golden vectors check. Nothing panics:
+//! `f32::clamp` panics on inverted bounds, `clamp` here does not.
+
+/// `x` bounded to `[lo, hi]`; NaN gives `lo`. Never panics (inverted bounds
+/// give `hi` for large `x`, `lo` otherwise).
+#[inline(always)]
+pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
+    if x > hi {
+        hi
+    } else if x >= lo {
+        x
+    } else {
+        lo
+    }
+}
+
+#[inline(always)]
+pub fn max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+#[inline(always)]
+pub fn min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// Largest integer not above `x`, for |x| < 2³¹ (NaN gives 0).
+#[inline(always)]
+pub fn floor(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// Nearest integer, halves away from zero, for |x| < 2³¹.
+#[inline(always)]
+pub fn round(x: f32) -> f32 {
+    if x >= 0.0 { floor(x + 0.5) } else { -floor(0.5 - x) }
+}
+
+/// Square root: the FPU's `vsqrt.f32` on the target, libm's (also correctly
+/// rounded, hence identical) elsewhere. Negative or NaN input gives NaN.
+#[inline(always)]
+pub fn sqrt(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let r: u32;
+        // SAFETY: register-only FPU instructions, no memory access. The value
+        // goes through a core register because the `sreg` operand class is
+        // not offered for this target.
+        unsafe {
+            core::arch::asm!(
+                "vmov s15, {x}",
+                "vsqrt.f32 s15, s15",
+                "vmov {r}, s15",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) r,
+                out("s15") _,
+                options(pure, nomem, nostack),
+            )
+        };
+        f32::from_bits(r)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
+/// Sine and cosine for |x| ≲ 10⁴ rad: quadrant reduction with a three-part
+/// π/2 (Cody–Waite; the first part has few bits so `n·part` is exact), then
+/// the Cephes minimax polynomials on [−π/4, π/4]. Error ≈ 1e-7 absolute.
+pub fn sincos(x: f32) -> (f32, f32) {
+    const DP1: f32 = 1.570_312_5;
+    const DP2: f32 = 4.837_513e-4;
+    const DP3: f32 = 7.549_79e-8;
+    let n = round(x * core::f32::consts::FRAC_2_PI);
+    let r = ((x - n * DP1) - n * DP2) - n * DP3;
+    let z = r * r;
+    let s = ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1) * z * r + r;
+    let c = ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
+    match (n as i32) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// Tangent through `sincos` (filter design at start-up, not the hot path).
+pub fn tan(x: f32) -> f32 {
+    let (s, c) = sincos(x);
+    s / c
+}
+
+/// Cube root by Newton's method from a bit-level first guess (trajectory
+/// planning, once per move). Relative error ≈ 1 ulp after four steps.
+pub fn cbrt(x: f32) -> f32 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let a = if x < 0.0 { -x } else { x };
+    // Dividing the exponent by three in the bit pattern: within 4 %.
+    let mut y = f32::from_bits(a.to_bits() / 3 + 0x2A51_2CE3);
+    for _ in 0..4 {
+        y = y - (y * y * y - a) / (3.0 * y * y);
+    }
+    if x < 0.0 { -y } else { y }
+}
+
+/// e^x for x ≤ 0 down to about −87 (the observer's Gaussians): 2^(x·log₂e)
+/// split into the nearest integer power n, set in the exponent bits, and a
+/// degree-7 Taylor polynomial of e^r for r = x − n ln 2, |r| ≤ ½ ln 2.
+/// Relative error ≈ 1e-7; below −87 (or NaN) gives 0.
+pub fn exp_neg(x: f32) -> f32 {
+    if !(x > -87.0) {
+        return 0.0;
+    }
+    if x > 0.0 {
+        return libm::expf(x);
+    }
+    // Cody–Waite: ln 2 in two parts, the first exact in few bits, so the
+    // reduced argument keeps full precision.
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    let n = round(x * core::f32::consts::LOG2_E);
+    let l = (x - n * LN2_HI) - n * LN2_LO;
+    let p = 1.0
+        + l * (1.0 + l * (0.5 + l * (1.0 / 6.0 + l * (1.0 / 24.0 + l * (1.0 / 120.0 + l * (1.0 / 720.0 + l * (1.0 / 5040.0)))))));
+    // n ∈ [−126, 0]: a normal power of two.
+    let bits = ((n as i32 + 127) as u32) << 23;
+    p * f32::from_bits(bits)
+}
+
+/// Wraps an angle into [−π, π).
+pub fn wrap_pi(angle_rad: f32) -> f32 {
+    use core::f32::consts::PI;
+    let turns = floor((angle_rad + PI) * (0.5 / PI));
+    angle_rad - turns * (2.0 * PI)
+}
