@@ -432,6 +432,14 @@ pub struct TrainArgs {
     /// Also write the generated model here (e.g. ../src/observer/model.rs).
     #[arg(long)]
     pub emit_core: Option<PathBuf>,
+    /// Skip the baselines (back-propagation from a random start, IBAS
+    /// alone), trained at the chosen size on the same split.
+    #[arg(long)]
+    pub no_baselines: bool,
+    /// Also train the paper's Table 2 grid, {opposite, mixed} × {length,
+    /// error}, and write table2.json / table2.md.
+    #[arg(long)]
+    pub table2: bool,
     /// Dataset name recorded in the model's metadata.
     #[arg(long)]
     pub dataset_name: Option<String>,
@@ -620,7 +628,21 @@ pub fn run_cli(args: &TrainArgs) -> Result<TrainReport> {
     let command = format!("host-sim train {}", argv.get(from..).unwrap_or_default().join(" "));
     let src = codegen::generate(&report.model, &report.codegen_meta(command.trim()))?;
     let write = |p: PathBuf, s: &str| std::fs::write(&p, s).with_context(|| format!("writing {}", p.display()));
-    write(args.out.join("summary.json"), &serde_json::to_string_pretty(&report)?)?;
+    let baselines = if args.no_baselines { None } else { Some(baselines(&ds, &opts, &report)?) };
+    let summary = TrainSummary {
+        observer_rmse_um_heldout: report.test.rmse_um,
+        mape_before: report.test_uncompensated.mape_pct,
+        mape_after: report.test.mape_pct,
+        baseline_rmse_um: baselines.clone().unwrap_or_default(),
+        report: &report,
+    };
+    write(args.out.join("summary.json"), &serde_json::to_string_pretty(&summary)?)?;
+    if args.table2 {
+        let rows = table2(&ds, &opts)?;
+        write(args.out.join("table2.json"), &serde_json::to_string_pretty(&rows)?)?;
+        write(args.out.join("table2.md"), &table2_markdown(&rows))?;
+        print!("{}", table2_markdown(&rows));
+    }
     write(args.out.join("model.json"), &serde_json::to_string_pretty(&report.model)?)?;
     write(args.out.join("model.rs"), &src)?;
     write_test_predictions(&ds, &report, &args.out.join("test_predictions.csv"))?;
@@ -641,6 +663,9 @@ pub fn run_cli(args: &TrainArgs) -> Result<TrainReport> {
         report.train.rmse_um,
         report.elapsed_s
     );
+    if let Some(b) = &baselines {
+        println!("baselines (held-out RMSE, µm): {b:?}");
+    }
     println!("wrote {}/{{summary.json, model.json, model.rs, test_predictions.csv}}", args.out.display());
     if let Some(p) = &args.emit_core {
         println!("wrote {}", p.display());
@@ -667,4 +692,112 @@ fn write_test_predictions(ds: &Dataset, report: &TrainReport, path: &std::path::
     }
     w.flush()?;
     Ok(())
+}
+
+/// `summary.json` of `host-sim train`: the report plus the headline figures.
+#[derive(Serialize)]
+struct TrainSummary<'a> {
+    /// Held-out RMSE of the chosen model.
+    observer_rmse_um_heldout: f64,
+    /// MAPE on terminal length without / with the observer (held-out runs).
+    mape_before: Option<f64>,
+    mape_after: Option<f64>,
+    /// Held-out RMSE of each baseline on the same split, µm.
+    baseline_rmse_um: std::collections::BTreeMap<String, f64>,
+    #[serde(flatten)]
+    report: &'a TrainReport,
+}
+
+/// The baselines of issue 3 on the chosen model's split and size.
+fn baselines(ds: &Dataset, opts: &TrainOptions, chosen: &TrainReport) -> Result<std::collections::BTreeMap<String, f64>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut base = opts.clone();
+    base.hidden = vec![chosen.hidden];
+    base.progress = false;
+    let mut bp_random = base.clone();
+    bp_random.ibas = None;
+    if bp_random.optimiser.is_some() {
+        out.insert("bp_random_init".to_string(), train_dataset(ds, &bp_random)?.test.rmse_um);
+    }
+    let mut ibas_only = base.clone();
+    ibas_only.optimiser = None;
+    if ibas_only.ibas.is_some() {
+        out.insert("ibas_only".to_string(), train_dataset(ds, &ibas_only)?.test.rmse_um);
+    }
+    if let Some(m) = &chosen.test_physics_baseline {
+        out.insert("physics_least_squares".to_string(), m.rmse_um);
+    }
+    Ok(out)
+}
+
+/// One row of the paper's Table 2 as this dataset gives it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Table2Row {
+    pub dataset_and_model: String,
+    /// Held-out, before compensation (the whole error) and after (residual).
+    pub mse_mm2_before: f64,
+    pub rmse_mm_before: f64,
+    pub mape_before: f64,
+    pub mse_mm2_after: f64,
+    pub rmse_mm_after: f64,
+    pub mape_after: f64,
+}
+
+/// {opposite (both ways), mixed} × {length, error}. Opposite rows average
+/// the two directions (train on elongation → test contraction, and back).
+fn table2(ds: &Dataset, opts: &TrainOptions) -> Result<Vec<Table2Row>> {
+    let mut rows = Vec::new();
+    for kind in [ModelKind::Length, ModelKind::Error] {
+        for split_name in ["opposite", "mixed"] {
+            let splits: Vec<SplitSpec> = match split_name {
+                "opposite" => vec![
+                    SplitSpec::Opposite { train: Direction::Elongation },
+                    SplitSpec::Opposite { train: Direction::Contraction },
+                ],
+                _ => vec![opts.split.clone()],
+            };
+            let mut acc = [0.0f64; 6];
+            for split in &splits {
+                let mut o = opts.clone();
+                o.kind = kind;
+                o.split = split.clone();
+                o.progress = false;
+                let r = train_dataset(ds, &o)?;
+                let (b, a) = (&r.test_uncompensated, &r.test);
+                for (slot, v) in acc.iter_mut().zip([
+                    b.mse_m2 * 1e6,
+                    b.rmse_m * 1e3,
+                    b.mape_pct.unwrap_or(f64::NAN),
+                    a.mse_m2 * 1e6,
+                    a.rmse_m * 1e3,
+                    a.mape_pct.unwrap_or(f64::NAN),
+                ]) {
+                    *slot += v / splits.len() as f64;
+                }
+            }
+            rows.push(Table2Row {
+                dataset_and_model: format!("{split_name} data, {} model", kind.name()),
+                mse_mm2_before: acc[0],
+                rmse_mm_before: acc[1],
+                mape_before: acc[2],
+                mse_mm2_after: acc[3],
+                rmse_mm_after: acc[4],
+                mape_after: acc[5],
+            });
+        }
+    }
+    Ok(rows)
+}
+
+fn table2_markdown(rows: &[Table2Row]) -> String {
+    let mut s = String::from(
+        "| dataset and observation model | MSE before (mm²) | RMSE before (mm) | MAPE before (%) | MSE after (mm²) | RMSE after (mm) | MAPE after (%) |\n|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {:.4e} | {:.5} | {:.5} | {:.4e} | {:.5} | {:.5} |\n",
+            r.dataset_and_model, r.mse_mm2_before, r.rmse_mm_before, r.mape_before, r.mse_mm2_after, r.rmse_mm_after, r.mape_after
+        );
+    }
+    s
 }
