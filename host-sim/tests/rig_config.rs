@@ -19,10 +19,12 @@ fn a_bad_control_field_is_refused_with_its_name() {
 
 #[test]
 fn an_unknown_or_missing_field_is_refused_with_its_name() {
-    let text = DEFAULT_RIG_TOML.replace("\nfilter_hz = 20.0", "\nfilter_hertz = 20.0");
+    let text = DEFAULT_RIG_TOML.replace("[control.load_estimate]\nfilter_hz", "[control.load_estimate]\nfilter_hertz");
+    assert_ne!(text, DEFAULT_RIG_TOML, "the test's edit must hit the file");
     let err = RigConfig::from_toml(&text, "typo.toml").unwrap_err().to_string();
     assert!(err.contains("typo.toml") && err.contains("filter_hertz"), "{err}");
     let text = DEFAULT_RIG_TOML.replace("\ntorque_filter_hz = 150.0", "");
+    assert_ne!(text, DEFAULT_RIG_TOML, "the test's edit must hit the file");
     let err = RigConfig::from_toml(&text, "missing.toml").unwrap_err().to_string();
     assert!(err.contains("torque_filter_hz"), "{err}");
 }
