@@ -107,7 +107,7 @@ pub fn cbrt(x: f32) -> f32 {
     }
     let a = if x < 0.0 { -x } else { x };
     // Dividing the exponent by three in the bit pattern: within 4 %.
-    let mut y = f32::from_bits(a.to_bits() / 3 + 0x2A51_2CE3);
+    let mut y = f32::from_bits(a.to_bits().wrapping_div(3).wrapping_add(0x2A51_2CE3));
     for _ in 0..4 {
         y = y - (y * y * y - a) / (3.0 * y * y);
     }
@@ -134,7 +134,7 @@ pub fn exp_neg(x: f32) -> f32 {
     let p = 1.0
         + l * (1.0 + l * (0.5 + l * (1.0 / 6.0 + l * (1.0 / 24.0 + l * (1.0 / 120.0 + l * (1.0 / 720.0 + l * (1.0 / 5040.0)))))));
     // n ∈ [−126, 0]: a normal power of two.
-    let bits = ((n as i32 + 127) as u32) << 23;
+    let bits = ((n as i32).wrapping_add(127) as u32) << 23;
     p * f32::from_bits(bits)
 }
 
