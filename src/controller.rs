@@ -66,7 +66,14 @@ pub enum CommandError {
     /// An argument beyond its bound (e.g. a shift above
     /// `faults.observer_shift_max_m`).
     OutOfRange,
+    /// The bus voltage is below `faults.bus_undervoltage_v`.
+    BusLow,
 }
+
+/// Conditions evaluated at the speed-loop rate.
+const SPEED_RATE_CAUSES: FaultSet = FaultSet(FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0);
+/// Conditions evaluated at the position-loop rate.
+const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
 
 /// Period-independent constants, computed once so the 20 kHz path does no
 /// divisions it can avoid.
@@ -112,8 +119,11 @@ pub struct Controller {
     speed_loop: SpeedLoop,
     trajectory: ScurveMove,
     move_ticks: u32,
-    /// External shift (`SetPositionShift`).
+    /// External shift (`SetPositionShift`), the target…
     position_shift_m: f32,
+    /// …and what is applied, moving towards it at the compensation's rate
+    /// limit so a new shift never arrives as a step.
+    external_shift_applied_m: f32,
     compensator: Compensator,
     /// Total shift applied last position period (external + observer).
     applied_shift_m: f32,
@@ -180,6 +190,7 @@ impl Controller {
             trajectory: ScurveMove::hold(0.0),
             move_ticks: 0,
             position_shift_m: 0.0,
+            external_shift_applied_m: 0.0,
             compensator: Compensator::new(params.compensation.enabled_at_start),
             applied_shift_m: 0.0,
             position_command_m: 0.0,
@@ -275,6 +286,7 @@ impl Controller {
         let v = self.speed_rad_s() * self.params.metres_per_rad();
         self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
         self.position_shift_m = 0.0;
+        self.external_shift_applied_m = 0.0;
         self.compensator.set_enabled(false);
         self.compensator.reset();
         self.mode = Mode::Stopping;
@@ -286,6 +298,11 @@ impl Controller {
             Command::Enable => {
                 if !self.faults.is_empty() {
                     return Err(CommandError::Faulted(self.faults));
+                }
+                // Before the first sample there is no reading; the first period
+                // then checks it like any other.
+                if self.tick > 0 && self.bus_voltage_v < self.params.faults.bus_undervoltage_v {
+                    return Err(CommandError::BusLow);
                 }
                 if self.mode == Mode::Running {
                     return Ok(CommandOutcome::Accepted);
@@ -421,7 +438,12 @@ impl Controller {
         if s.bus_voltage_v > f.bus_overvoltage_v {
             present.insert(FaultSet::BUS_OVERVOLTAGE);
         }
-        if s.bus_voltage_v < f.bus_undervoltage_v && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Aligning) {
+        // Only while the bridge is on or the fault is latched: a board powered
+        // from USB with the bus off must still be configurable, but a latched
+        // undervoltage must not clear during the sag.
+        let watching = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Aligning)
+            || self.faults.contains(FaultSet::BUS_UNDERVOLTAGE);
+        if s.bus_voltage_v < f.bus_undervoltage_v && watching {
             present.insert(FaultSet::BUS_UNDERVOLTAGE);
         }
         present
@@ -448,12 +470,18 @@ impl Controller {
         }
         let speed_tick = self.tick.is_multiple_of(self.params.rates.speed_loop_divider);
         let position_tick = self.tick.is_multiple_of(self.params.rates.position_loop_divider);
-        if speed_tick {
-            present = present.union(self.check_speed_period());
-        }
-        if position_tick {
-            present = present.union(self.check_motion());
-        }
+        // Causes checked at the outer rates keep their last verdict between
+        // their ticks, or a clear between two ticks would find them gone.
+        present = present.union(if speed_tick {
+            self.check_speed_period()
+        } else {
+            self.present.intersection(SPEED_RATE_CAUSES)
+        });
+        present = present.union(if position_tick {
+            self.check_motion()
+        } else {
+            self.present.intersection(POSITION_RATE_CAUSES)
+        });
         self.present = present;
         self.raise(present.difference(FaultSet::INVALID_PARAMS));
 
@@ -461,6 +489,8 @@ impl Controller {
             Mode::Disabled | Mode::Fault => {
                 self.hold_here();
                 self.reset_loops();
+                // No current flows with the bridge off: the I²t model cools.
+                self.current_dq = Dq::default();
                 PwmCommand::OFF
             }
             Mode::Aligning => self.align_period(s),
@@ -479,7 +509,15 @@ impl Controller {
         let dt = self.derived.speed_period_s;
         let i2 = self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q;
         self.thermal.update(&self.params.thermal, i2, dt);
-        if self.thermal.tripped(&self.params.thermal) {
+        // Hysteresis: once tripped, the cause stays until the winding has
+        // cooled below the foldback start.
+        let th = &self.params.thermal;
+        let hot = if self.faults.contains(FaultSet::MOTOR_OVERTEMP) {
+            self.thermal.level() > th.foldback_start
+        } else {
+            self.thermal.tripped(th)
+        };
+        if hot {
             present.insert(FaultSet::MOTOR_OVERTEMP);
         }
         let count = self.encoder.count();
@@ -604,7 +642,10 @@ impl Controller {
         } else {
             0.0
         };
-        self.applied_shift_m = observer_shift + self.position_shift_m;
+        let step_max = self.params.compensation.shift_rate_max_m_s * self.derived.position_period_s;
+        self.external_shift_applied_m +=
+            crate::math::clamp(self.position_shift_m - self.external_shift_applied_m, -step_max, step_max);
+        self.applied_shift_m = observer_shift + self.external_shift_applied_m;
         let l = &self.params.limits;
         let (command, clamped) = clamp_to_stroke(r.position_m + self.applied_shift_m, l.stroke_min_m, l.stroke_max_m);
         if clamped {

@@ -384,12 +384,12 @@ impl ControlParams {
         // servo winding's thermal time constant is minutes; 30 s is on the
         // safe side and still allows 3× current for ≈3.5 s from cold.
         thermal: ThermalParams { continuous_current_a: 12.0, time_constant_s: 30.0, foldback_start: 0.8, trip_level: 1.05 },
-        // Motor: 3× rated peak (catalogue class); inverter: a 48 V, 40 A
-        // stage; bus: 63 V capacitors; speed: motor 3000 rpm rating (the
+        // Motor: 3× rated peak (catalogue class); inverter: a 48 V stage
+        // rated 50 A peak (the overcurrent trip at 45 A must sit below it); bus: 63 V capacitors; speed: motor 3000 rpm rating (the
         // Ø20×5 screw's critical speed at 600 mm is higher).
         ratings: RatingParams {
             motor_peak_current_a: 36.0,
-            inverter_peak_current_a: 40.0,
+            inverter_peak_current_a: 50.0,
             bus_max_voltage_v: 63.0,
             speed_max_rad_s: 2.0 * PI * 3000.0 / 60.0,
         },
@@ -597,6 +597,12 @@ impl ControlParams {
             return Err(ParamError {
                 field: "control.limits.current_max_a",
                 reason: "above the motor or inverter peak rating (control.ratings)",
+            });
+        }
+        if f.overcurrent_trip_a > r.inverter_peak_current_a {
+            return Err(ParamError {
+                field: "control.faults.overcurrent_trip_a",
+                reason: "above control.ratings.inverter_peak_current_a",
             });
         }
         if f.bus_overvoltage_v > r.bus_max_voltage_v {

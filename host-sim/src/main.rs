@@ -35,6 +35,14 @@ enum Cmd {
         #[arg(long)]
         observer: bool,
     },
+    /// Fault injection: every scenario of docs/reliability.md, closed loop.
+    /// Writes summary.json, reliability_measured.md and a trace per scenario.
+    Faults {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long)]
+        params: Option<PathBuf>,
+    },
     /// Train the IBAS-BPNN error observer (paper §4.1) on a dataset and write
     /// the firmware's model source. Writes summary.json, model.json, model.rs
     /// and test_predictions.csv to --out.
@@ -61,6 +69,13 @@ enum Cmd {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Paper { out, params, seed, observer } => paper(out, params, seed, observer),
+        Cmd::Faults { out, params } => {
+            let rig = RigConfig::load_or_nominal(params.as_ref())?;
+            let rows = host_sim::fault_injection::report::run_catalog(&rig, &out)?;
+            print!("{}", host_sim::fault_injection::report::markdown_table(&rows));
+            println!("{} of {} scenarios meet their requirement", rows.iter().filter(|r| r.passed).count(), rows.len());
+            Ok(())
+        }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })

@@ -38,6 +38,13 @@ pub struct ClosedLoop {
     /// The plant's truth at the last sampling instant (the period start),
     /// which is the instant the telemetry describes.
     sampled_state: PlantState,
+    /// The board's comparator overcurrent break, if modelled (see
+    /// `set_hardware_break_a`).
+    hardware_break_a: Option<f64>,
+    hardware_break_period: Option<u64>,
+    /// Largest |true phase current| over the last period's integration
+    /// steps (with a break modelled), else at its end.
+    period_peak_current_a: f64,
 }
 
 impl ClosedLoop {
@@ -52,6 +59,56 @@ impl ClosedLoop {
             bus_voltage_v,
             last_sample: SensorSample::idle(0.0),
             sampled_state: PlantState::default(),
+            hardware_break_a: None,
+            hardware_break_period: None,
+            period_peak_current_a: 0.0,
+        }
+    }
+
+    /// Models the board's comparator break: once any true phase current
+    /// exceeds `trip_a` (checked after every plant integration step, as
+    /// the comparator acts within microseconds, independently of the core)
+    /// the outputs go off and stay off. `None` (the default): no break;
+    /// each period is then one `Plant::advance`, as before.
+    pub fn set_hardware_break_a(&mut self, trip_a: Option<f64>) {
+        self.hardware_break_a = trip_a;
+    }
+
+    /// Largest |true phase current| during the last period: over its
+    /// integration steps when a break is modelled (pass `f64::INFINITY` to
+    /// get that resolution without a break), else at its end.
+    pub fn period_peak_current_a(&self) -> f64 {
+        self.period_peak_current_a
+    }
+
+    /// The period in which the comparator break tripped, if it did.
+    pub fn hardware_break_period(&self) -> Option<u64> {
+        self.hardware_break_period
+    }
+
+    /// Applies `pending` over one PWM period, through the comparator break
+    /// if one is modelled.
+    fn advance_period(&mut self) {
+        let peak_now = |p: &Plant| p.state().phase_current_a.iter().fold(0.0_f64, |m, i| m.max(i.abs()));
+        let Some(trip) = self.hardware_break_a else {
+            self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
+            self.period_peak_current_a = peak_now(&self.plant);
+            return;
+        };
+        let n = self.plant.params().integration.substeps_per_pwm_period.max(1);
+        let h = self.pwm_period_s / f64::from(n);
+        self.period_peak_current_a = 0.0;
+        for _ in 0..n {
+            let cmd = if self.hardware_break_period.is_some() { PwmCommand::OFF } else { self.pending };
+            self.plant.advance(&cmd, self.bus_voltage_v, h);
+            let peak = peak_now(&self.plant);
+            self.period_peak_current_a = self.period_peak_current_a.max(peak);
+            if self.hardware_break_period.is_none() && peak > trip {
+                self.hardware_break_period = Some(self.periods);
+            }
+        }
+        if self.hardware_break_period.is_some() {
+            self.pending = PwmCommand::OFF;
         }
     }
 
@@ -100,8 +157,8 @@ impl ClosedLoop {
         self.sampled_state.clone_from(self.plant.state());
         corrupt(&mut sample);
         let cmd = self.controller.step(&sample);
-        self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
-        self.pending = cmd;
+        self.advance_period();
+        self.pending = if self.hardware_break_period.is_some() { PwmCommand::OFF } else { cmd };
         self.last_sample = sample;
         self.periods += 1;
         self.controller.telemetry()
@@ -111,7 +168,7 @@ impl ClosedLoop {
     /// trigger): the timer keeps applying the duties it holds.
     pub fn step_without_core(&mut self) {
         self.sampled_state.clone_from(self.plant.state());
-        self.plant.advance(&self.pending, self.bus_voltage_v, self.pwm_period_s);
+        self.advance_period();
         self.periods += 1;
     }
 

@@ -91,14 +91,13 @@ pub fn diode_legs_open(i_abc: [f64; 3], e_abc: [f64; 3], bus_v: f64, open: usize
     };
     let mut legs = [Leg::Open; 3];
     let i = 0.5 * (i_abc[j] - i_abc[m]);
-    let (lj, lm) = if i > ZERO_CURRENT_A {
+    let idle = i.abs() <= ZERO_CURRENT_A;
+    // Current out of j (or, with none flowing, j's EMF above m's by more
+    // than the bus) conducts through j's high-side diode.
+    let (lj, lm) = if i > ZERO_CURRENT_A || (idle && e_abc[m] - e_abc[j] > bus_v) {
         (Leg::Low, Leg::High)
-    } else if i < -ZERO_CURRENT_A {
+    } else if i < -ZERO_CURRENT_A || (idle && e_abc[j] - e_abc[m] > bus_v) {
         (Leg::High, Leg::Low)
-    } else if e_abc[j] - e_abc[m] > bus_v {
-        (Leg::High, Leg::Low)
-    } else if e_abc[m] - e_abc[j] > bus_v {
-        (Leg::Low, Leg::High)
     } else {
         return legs;
     };

@@ -1,0 +1,144 @@
+//! Sensor faults injected between the plant and the core: current-sensor
+//! noise, spikes, stuck and offset readings, NaN samples, encoder glitches,
+//! miscounts and dropouts. Each test runs one catalog scenario (vertical,
+//! rated load, 0.2 m/s) and asserts: the fault bit and the reaction, the
+//! detection bound in PWM periods, the true phase current never above
+//! `limits.current_max_a` + 9 A (the trip level) for more than one period,
+//! the stroke kept (± 2.5 mm), and no NaN anywhere afterwards.
+
+mod fault_support;
+
+use fault_support::*;
+use host_sim::fault_injection::catalog;
+use servo_core::{Command, CommandError, FaultSet, Mode};
+
+#[test]
+fn noise_burst_is_ridden_through() {
+    let rig = rig();
+    let o = run_meeting(&catalog::noise_burst(&rig));
+    // The loop kept tracking: the move still ended where it was going.
+    assert!((o.records.last().unwrap().motor_side_position_m - catalog::MOVE_TO_M).abs() < 0.01);
+}
+
+#[test]
+fn a_current_spike_trips_overcurrent_in_the_same_period_and_switches_off() {
+    let o = run_meeting(&catalog::noise_spike(&rig()));
+    assert_eq!(o.detection_periods(), Some(0));
+    assert_eq!(o.bridge_off_periods(), Some(1));
+    assert_bridge_off_after_latch(&o);
+}
+
+#[test]
+fn a_current_sensor_stuck_at_full_scale_trips_overcurrent() {
+    let o = run_meeting(&catalog::current_sensor_stuck_high(&rig()));
+    assert_eq!(o.detection_periods(), Some(0));
+    assert_bridge_off_after_latch(&o);
+}
+
+/// What the present core does with a phase reading stuck at 0 A: the
+/// Clarke transform then sees a third of the α current, the loop pushes
+/// harder, and only the position following error notices, after ≈74 ms,
+/// with a controlled stop that cannot work on a wrong current measurement.
+#[test]
+fn a_current_sensor_stuck_at_zero_is_caught_only_by_the_following_error() {
+    let rig = rig();
+    let sc = catalog::current_sensor_stuck_zero(&rig);
+    let today = any_fault(Mode::Stopping, periods(&rig, 0.1), &sc.expect);
+    let o = run_meeting_instead(&sc, &today);
+    assert!(o.final_faults.contains(FaultSet::POSITION_FOLLOWING), "{}", o.brief());
+}
+
+#[test]
+#[ignore = "needs core change: phase-current plausibility (|i_a + i_b + i_c| above a threshold latches a bridge-off fault)"]
+fn a_current_sensor_stuck_at_zero_latches_within_1_ms() {
+    run_meeting(&catalog::current_sensor_stuck_zero(&rig()));
+}
+
+/// A +5 A offset on one phase is not detected by the present core; the
+/// loop rides through with a torque ripple and the current stays bounded.
+#[test]
+fn a_current_sensor_offset_is_ridden_through_with_bounded_current() {
+    let rig = rig();
+    let sc = catalog::current_sensor_offset(&rig);
+    let today = host_sim::fault_injection::Expect { reaction: None, ..sc.expect };
+    let o = run_meeting_instead(&sc, &today);
+    assert!(o.peak_current_after_fault_a < f64::from(rig.control.limits.current_max_a));
+}
+
+#[test]
+#[ignore = "needs core change: phase-current plausibility (|i_a + i_b + i_c| above a threshold latches a bridge-off fault)"]
+fn a_current_sensor_offset_latches_within_1_ms() {
+    run_meeting(&catalog::current_sensor_offset(&rig()));
+}
+
+#[test]
+fn a_nan_current_sample_latches_in_the_same_period_and_clears_on_command() {
+    let rig = rig();
+    let mut sc = catalog::nan_current_sample(&rig);
+    // The cause is gone one period later; the fault stays latched until the
+    // explicit clear, which then succeeds.
+    sc.commands.push(host_sim::fault_injection::CommandAt { at_s: 0.65, command: Command::ClearFaults });
+    let o = run_meeting(&sc);
+    assert_eq!(o.detection_periods(), Some(0));
+    let latch = o.latch_period.unwrap() as usize;
+    let clear = (0.65 / o.pwm_period_s).round() as usize;
+    assert!(o.records[latch + 1..clear - 1].iter().all(|r| r.mode == Mode::Fault && !r.bridge_on));
+    assert_eq!(o.command_result(0.65), Some(Ok(servo_core::CommandOutcome::Accepted)));
+    assert_eq!(o.final_mode, Mode::Disabled);
+    assert!(o.final_faults.is_empty());
+}
+
+#[test]
+fn a_nan_bus_sample_latches_in_the_same_period() {
+    let o = run_meeting(&catalog::nan_bus_sample(&rig()));
+    assert_eq!(o.detection_periods(), Some(0));
+    assert_bridge_off_after_latch(&o);
+}
+
+#[test]
+fn an_encoder_glitch_latches_encoder_jump_in_the_same_period() {
+    let o = run_meeting(&catalog::encoder_glitch(&rig()));
+    assert_eq!(o.detection_periods(), Some(0));
+    assert_bridge_off_after_latch(&o);
+}
+
+/// A lasting miscount of 1000 counts (144° electrical, twice what the motor
+/// turns in a period at top speed) is below the 2000-count jump bound: the
+/// commutation is wrong, the motor runs the wrong way, the position
+/// following error starts a controlled stop that cannot work (the angle is
+/// still wrong) and the comparator break ends it at 45 A.
+#[test]
+fn an_encoder_miscount_below_the_jump_bound_is_caught_only_by_the_following_error() {
+    let rig = rig();
+    let sc = catalog::encoder_miscount(&rig);
+    let today = any_fault(Mode::Stopping, periods(&rig, 0.05), &sc.expect);
+    let o = run_meeting_instead(&sc, &today);
+    assert!(o.first_faults.contains(FaultSet::POSITION_FOLLOWING), "{}", o.brief());
+}
+
+#[test]
+#[ignore = "needs core change: encoder plausibility on the PLL innovation |count − predicted| (a few tens of counts) instead of |step| ≤ 2000 counts"]
+fn an_encoder_miscount_latches_encoder_jump_in_the_same_period() {
+    run_meeting(&catalog::encoder_miscount(&rig()));
+}
+
+#[test]
+fn an_encoder_dropout_latches_encoder_lost_within_its_time_bound() {
+    let rig = rig();
+    let o = run_meeting(&catalog::encoder_dropout(&rig));
+    // Bound from the parameters: the lost time, counted at the speed rate.
+    let f = &rig.control.faults;
+    let bound = periods(&rig, f.encoder_lost_time_s) + u64::from(rig.control.rates.speed_loop_divider) * 2;
+    assert!(o.detection_periods().unwrap() <= bound, "{}", o.brief());
+    assert_bridge_off_after_latch(&o);
+}
+
+#[test]
+fn a_latched_fault_refuses_enable_until_cleared() {
+    let rig = rig();
+    let mut sc = catalog::encoder_glitch(&rig);
+    sc.commands.push(host_sim::fault_injection::CommandAt { at_s: 0.6, command: Command::Enable });
+    let o = run_meeting(&sc);
+    assert!(matches!(o.command_result(0.6), Some(Err(CommandError::Faulted(f))) if f.contains(FaultSet::ENCODER_JUMP)));
+    assert_eq!(o.final_mode, Mode::Fault);
+}
