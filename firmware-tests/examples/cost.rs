@@ -129,50 +129,18 @@ fn observe(x: [f32; 4]) -> f32 {
     observer::evaluate(&observer::model::MODEL, x).value_m
 }
 
-/// The FPU's square root (one instruction; correctly rounded, so it gives
-/// the same result as libm's software `sqrtf`).
+/// The core's square root (`vsqrt.f32` on this target), behind a call so it
+/// is counted like the libm one next to it.
 #[inline(never)]
 fn vsqrt(x: f32) -> f32 {
-    let r: u32;
-    // SAFETY: register-only FPU instructions. (The `sreg` operand class is
-    // refused on this target for want of a `vfp2` feature flag, so the value
-    // goes through core registers and s15 is declared clobbered.)
-    unsafe {
-        core::arch::asm!(
-            "vmov s15, {x}",
-            "vsqrt.f32 s15, s15",
-            "vmov {r}, s15",
-            x = in(reg) x.to_bits(),
-            r = lateout(reg) r,
-            out("s15") _,
-            options(pure, nomem, nostack),
-        )
-    };
-    f32::from_bits(r)
+    servo_core::math::sqrt(x)
 }
 
-/// A single-precision sin/cos for |x| ≲ 10⁴ rad: quadrant reduction with a
-/// two-part π/2, then minimax polynomials on [−π/4, π/4] (max error about
-/// 1e-7, i.e. 1–2 ulp near 1). What libm's `sincosf` costs on an FPU
-/// without double precision is mostly its f64 arithmetic (soft-float on
-/// the M4); this is what an f32-only version costs.
+/// The core's single-precision sin/cos (`servo_core::math::sincos`), behind a
+/// call, next to libm's `sincosf` it replaced.
 #[inline(never)]
 fn sincos_poly(x: f32) -> (f32, f32) {
-    const TWO_OVER_PI: f32 = 0.636_619_77;
-    const PIO2_HI: f32 = 1.570_312_5; // exactly representable, few bits
-    const PIO2_LO: f32 = 4.838_267_9e-4;
-    let n = libm::rintf(x * TWO_OVER_PI);
-    let r = (x - n * PIO2_HI) - n * PIO2_LO;
-    let r2 = r * r;
-    let s = r + r * r2 * (-1.666_665_5e-1 + r2 * (8.332_161e-3 + r2 * -1.951_529_6e-4));
-    let c =
-        1.0 - 0.5 * r2 + r2 * r2 * (4.166_664_6e-2 + r2 * (-1.388_731_6e-3 + r2 * 2.443_315_7e-5));
-    match (n as i32) & 3 {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
-    }
+    servo_core::math::sincos(x)
 }
 
 // ---- report ----------------------------------------------------------------
@@ -331,7 +299,7 @@ fn main() -> ! {
     push(row(
         &m,
         "poly_sincosf",
-        "f32 polynomial sin/cos (candidate), same angles",
+        "servo_core::math::sincos (f32 polynomial), same angles",
         &each(&m, 997, angle, |x| {
             black_box(sincos_poly(x));
         }),
@@ -352,7 +320,7 @@ fn main() -> ! {
     push(row(
         &m,
         "vsqrt",
-        "vsqrt.f32 (FPU instruction, candidate)",
+        "servo_core::math::sqrt (vsqrt.f32)",
         &each(
             &m,
             500,
