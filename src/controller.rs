@@ -142,6 +142,8 @@ pub struct Controller {
     thermal: ThermalModel,
     /// The controlled stop in progress (mode `Stopping`).
     stop: StopRamp,
+    /// Consecutive periods with |i_a + i_b + i_c| over its bound.
+    current_sum_count: u32,
     /// How long |ω_ref − ω| has been over its threshold.
     speed_error_s: f32,
     /// How long the encoder has shown no count while told to turn.
@@ -206,6 +208,7 @@ impl Controller {
             align_ticks: 0,
             thermal: ThermalModel::new(),
             stop: StopRamp::default(),
+            current_sum_count: 0,
             speed_error_s: 0.0,
             no_count_s: 0.0,
             count_at_last_speed_tick: 0,
@@ -435,6 +438,11 @@ impl Controller {
         if a.abs() > trip || b.abs() > trip || c.abs() > trip {
             present.insert(FaultSet::OVERCURRENT);
         }
+        // Σi must persist over `current_sum_periods` (counted in `step`):
+        // noise on three independent channels adds up too.
+        if (a + b + c).abs() > f.current_sum_max_a && self.current_sum_count.saturating_add(1) >= f.current_sum_periods {
+            present.insert(FaultSet::CURRENT_SENSOR);
+        }
         if s.bus_voltage_v > f.bus_overvoltage_v {
             present.insert(FaultSet::BUS_OVERVOLTAGE);
         }
@@ -454,6 +462,12 @@ impl Controller {
     pub fn step(&mut self, s: &SensorSample) -> PwmCommand {
         self.tick = self.tick.wrapping_add(1);
         let mut present = self.check_inputs(s);
+        let [a, b, c] = s.phase_current_a;
+        self.current_sum_count = if (a + b + c).abs() > self.params.faults.current_sum_max_a {
+            self.current_sum_count.saturating_add(1)
+        } else {
+            0
+        };
         if !present.contains(FaultSet::NON_FINITE_INPUT) {
             self.bus_voltage_v = s.bus_voltage_v;
             self.terminal_position_m = s.terminal_position_m;

@@ -141,6 +141,11 @@ pub struct FaultParams {
     /// Largest believable error-observer shift; beyond it (or non-finite) the
     /// observer is switched off and the drive stops.
     pub observer_shift_max_m: f32,
+    /// Largest |i_a + i_b + i_c| believed (the motor is star-connected, so
+    /// the true sum is zero); above it a current sensor is faulty.
+    pub current_sum_max_a: f32,
+    /// …for this many consecutive PWM periods.
+    pub current_sum_periods: u32,
 }
 
 /// I²t winding protection: a first-order thermal model normalised to the
@@ -375,6 +380,12 @@ impl ControlParams {
             stop_deceleration_m_s2: 5.0,
             // The paper's largest compensation, 1.5 mm, with a third more room.
             observer_shift_max_m: 0.002,
+            // ≈100 ADC codes of the ESC1's 29 mA/code: far above noise and
+            // quantisation, far below a stuck sensor at rated current (12 A).
+            current_sum_max_a: 3.0,
+            // 0.5 ms: noise on three channels (σ_Σ = 1.7 A for 1 A each) stays
+            // above 3 A ten periods running with odds of 1e-11.
+            current_sum_periods: 10,
         },
         load_estimate: LoadEstimateParams { filter_hz: 5.0 },
         // Rated current: enough torque to pull the rotor against the screw's
@@ -566,6 +577,8 @@ impl ControlParams {
             });
         }
         positive("control.faults.observer_shift_max_m", f.observer_shift_max_m)?;
+        positive("control.faults.current_sum_max_a", f.current_sum_max_a)?;
+        nonzero("control.faults.current_sum_periods", f.current_sum_periods)?;
         let c = &self.compensation;
         positive("control.compensation.shift_max_m", c.shift_max_m)?;
         if c.shift_max_m > f.observer_shift_max_m {

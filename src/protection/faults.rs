@@ -40,6 +40,10 @@ impl FaultSet {
     pub const OBSERVER_OUT_OF_BOUNDS: Self = Self(1 << 13);
     /// The last reset came from the independent watchdog (board-reported).
     pub const WATCHDOG_RESET: Self = Self(1 << 14);
+    /// The three phase currents do not sum to zero: a stuck, offset or
+    /// open-circuit current sensor (a star-connected motor has no path for a
+    /// common-mode current).
+    pub const CURRENT_SENSOR: Self = Self(1 << 15);
 
     /// Faults whose reaction is a controlled stop, not switching off. The
     /// motor, its sensors and the bridge still work; only the motion is
@@ -52,7 +56,7 @@ impl FaultSet {
     );
 
     /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 15] = [
+    pub const ALL: [(Self, &'static str); 16] = [
         (Self::OVERCURRENT, "overcurrent"),
         (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
         (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
@@ -68,6 +72,7 @@ impl FaultSet {
         (Self::SOFT_LIMIT, "soft_limit"),
         (Self::OBSERVER_OUT_OF_BOUNDS, "observer_out_of_bounds"),
         (Self::WATCHDOG_RESET, "watchdog_reset"),
+        (Self::CURRENT_SENSOR, "current_sensor"),
     ];
 
     pub const fn is_empty(self) -> bool {
