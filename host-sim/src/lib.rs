@@ -6,6 +6,7 @@
 //! leaves behind, `config` reads the rig file, `trainer` fits the error observer.
 
 pub mod config;
+pub mod diagnose;
 pub mod fault_injection;
 pub mod plant;
 pub mod report;

@@ -47,6 +47,9 @@ enum Cmd {
     /// the firmware's model source. Writes summary.json, model.json, model.rs
     /// and test_predictions.csv to --out.
     Train(host_sim::trainer::TrainArgs),
+    /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
+    /// lies, which unmodelled effect causes it, how far it shrinks.
+    Diagnose(host_sim::diagnose::DiagnoseArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
@@ -77,6 +80,7 @@ fn main() -> Result<()> {
             Ok(())
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
+        Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
         }
