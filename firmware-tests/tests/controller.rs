@@ -4,6 +4,8 @@
 
 use core::f32::consts::PI;
 use firmware_tests::{check, check_close, test_main, Outcome};
+// The same rigid PMSM plant the golden vectors replay through.
+use golden::plant::RigidPlant;
 use servo_core::{
     Command, CommandError, ControlParams, Controller, FaultSet, Mode, PwmCommand, SensorSample,
 };
@@ -206,88 +208,13 @@ fn encoder_wraps_without_fault() -> Outcome {
     Ok(())
 }
 
-/// A rigid drive train on a PMSM: the smallest plant that closes every loop
-/// (d-q electrical model, one inertia, viscous friction, quantised encoder,
-/// the duties of one period applied during the next). Independent of the
-/// core's transforms: the formulas are written out here.
-struct RigidPlant {
-    i_d: f32,
-    i_q: f32,
-    speed_rad_s: f32,
-    angle_rad: f32,
-    p: ControlParams,
-}
-
-impl RigidPlant {
-    const SUBSTEPS: u32 = 10;
-
-    fn new(p: ControlParams) -> Self {
-        Self {
-            i_d: 0.0,
-            i_q: 0.0,
-            speed_rad_s: 0.0,
-            angle_rad: 0.0,
-            p,
-        }
-    }
-
-    fn sample(&self) -> SensorSample {
-        let pp = self.p.motor.pole_pairs as f32;
-        let (s, c) = libm::sincosf(pp * self.angle_rad);
-        let i_alpha = self.i_d * c - self.i_q * s;
-        let i_beta = self.i_d * s + self.i_q * c;
-        let h = 0.5 * libm::sqrtf(3.0);
-        let counts =
-            libm::floorf(self.angle_rad / (2.0 * PI) * self.p.encoder.counts_per_rev as f32) as i32;
-        SensorSample {
-            phase_current_a: [
-                i_alpha,
-                -0.5 * i_alpha + h * i_beta,
-                -0.5 * i_alpha - h * i_beta,
-            ],
-            encoder_count: counts as u16,
-            ..SensorSample::idle(BUS_V)
-        }
-    }
-
-    /// Advances one PWM period under `out`.
-    fn advance(&mut self, out: &PwmCommand) {
-        let m = self.p.motor;
-        let pp = m.pole_pairs as f32;
-        let j = self.p.reflected_inertia_kg_m2();
-        let b = self.p.drive_train.viscous_friction_n_m_s_rad;
-        let dt = self.p.pwm_period_s() / Self::SUBSTEPS as f32;
-        let [da, db, dc] = if out.enable { out.duty } else { [0.5; 3] };
-        let (va, vb, vc) = (da * BUS_V, db * BUS_V, dc * BUS_V);
-        let v_alpha = (2.0 * va - vb - vc) / 3.0;
-        let v_beta = (vb - vc) / libm::sqrtf(3.0);
-        for _ in 0..Self::SUBSTEPS {
-            let (s, c) = libm::sincosf(pp * self.angle_rad);
-            let v_d = v_alpha * c + v_beta * s;
-            let v_q = -v_alpha * s + v_beta * c;
-            let we = pp * self.speed_rad_s;
-            let did = (v_d - m.phase_resistance_ohm * self.i_d + we * m.inductance_q_h * self.i_q)
-                / m.inductance_d_h;
-            let diq = (v_q
-                - m.phase_resistance_ohm * self.i_q
-                - we * (m.inductance_d_h * self.i_d + m.flux_linkage_wb))
-                / m.inductance_q_h;
-            let torque = 1.5 * pp * m.flux_linkage_wb * self.i_q;
-            self.i_d += did * dt;
-            self.i_q += diq * dt;
-            self.speed_rad_s += (torque - b * self.speed_rad_s) / j * dt;
-            self.angle_rad += self.speed_rad_s * dt;
-        }
-    }
-}
-
 /// The whole cascade closed through a rigid plant: a 10 mm jerk-limited move
 /// ends within 20 µm of its target at rest, with the bridge on throughout,
 /// valid duties every period and no fault (so the following error stayed
 /// under its 5 mm trip).
 fn closed_loop_move_on_rigid_plant() -> Outcome {
     let p = ControlParams::DEFAULT;
-    let mut plant = RigidPlant::new(p);
+    let mut plant = RigidPlant::new(p, BUS_V);
     let mut c = Controller::new(p);
     c.step(&plant.sample());
     let home_m = 0.1;
