@@ -477,6 +477,7 @@ impl Controller {
             s.encoder_count,
             self.derived.pwm_period_s,
             self.params.faults.encoder_max_step_counts,
+            self.params.faults.encoder_max_innovation_counts,
         );
         if enc.implausible_step {
             // A jump is an event, not a standing condition: it can be cleared.

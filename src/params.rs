@@ -120,6 +120,9 @@ pub struct FaultParams {
     pub bus_undervoltage_v: f32,
     /// Largest believable encoder change in one PWM period, in counts.
     pub encoder_max_step_counts: u32,
+    /// Largest believable distance between a new count and the tracking
+    /// observer's prediction of it, in counts.
+    pub encoder_max_innovation_counts: f32,
     /// Position following error (command − motor-side position) that trips.
     pub position_following_error_m: f32,
     /// Motor-side position beyond the stroke by more than this trips.
@@ -362,6 +365,9 @@ impl ControlParams {
             bus_undervoltage_v: 36.0,
             // 3000 rpm = 500 counts per 50 µs at 10 000 counts/rev; 4× margin.
             encoder_max_step_counts: 2_000,
+            // 100 counts (3.6° mechanical, 14° electrical): the observer lags
+            // the rotor's peak acceleration (36 A on the rotor alone) by ≈30.
+            encoder_max_innovation_counts: 100.0,
             position_following_error_m: 0.005,
             stroke_overtravel_m: 0.005,
             // A quarter of rated speed for 50 ms: far outside what the loop
@@ -550,6 +556,7 @@ impl ControlParams {
             return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "must exceed bus_undervoltage_v" });
         }
         nonzero("control.faults.encoder_max_step_counts", f.encoder_max_step_counts)?;
+        positive("control.faults.encoder_max_innovation_counts", f.encoder_max_innovation_counts)?;
         positive("control.faults.position_following_error_m", f.position_following_error_m)?;
         non_negative("control.faults.stroke_overtravel_m", f.stroke_overtravel_m)?;
         positive("control.load_estimate.filter_hz", self.load_estimate.filter_hz)?;

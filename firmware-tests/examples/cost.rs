@@ -106,7 +106,7 @@ fn current_loop(
 
 #[inline(never)]
 fn encoder(e: &mut EncoderTracker, p: &ControlParams, raw: u16) -> bool {
-    e.update(&p.encoder, raw, 50e-6, 2000).implausible_step
+    e.update(&p.encoder, raw, 50e-6, 2000, 100.0).implausible_step
 }
 
 #[inline(never)]

@@ -64,7 +64,7 @@ fn encoder_tracker_follows_a_constant_speed_through_counter_wraps() {
     for k in 0..40_000u32 {
         let true_counts = speed_counts_s * f64::from(k) * f64::from(dt);
         let raw = start.wrapping_add(true_counts.floor() as i64 as u16);
-        let up = enc.update(&p.encoder, raw, dt, p.faults.encoder_max_step_counts);
+        let up = enc.update(&p.encoder, raw, dt, p.faults.encoder_max_step_counts, p.faults.encoder_max_innovation_counts);
         assert!(!up.implausible_step);
     }
     let true_counts = speed_counts_s * 39_999.0 * f64::from(dt);
@@ -78,7 +78,7 @@ fn encoder_tracker_follows_a_constant_speed_through_counter_wraps() {
 fn encoder_tracker_flags_an_impossible_jump() {
     let p = ControlParams::DEFAULT;
     let mut enc = EncoderTracker::new();
-    enc.update(&p.encoder, 100, 5e-5, p.faults.encoder_max_step_counts);
-    let up = enc.update(&p.encoder, 100 + 5_000, 5e-5, p.faults.encoder_max_step_counts);
+    enc.update(&p.encoder, 100, 5e-5, p.faults.encoder_max_step_counts, p.faults.encoder_max_innovation_counts);
+    let up = enc.update(&p.encoder, 100 + 5_000, 5e-5, p.faults.encoder_max_step_counts, p.faults.encoder_max_innovation_counts);
     assert!(up.implausible_step);
 }

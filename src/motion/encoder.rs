@@ -33,7 +33,11 @@ impl EncoderTracker {
     }
 
     /// Feeds one raw counter value taken `dt_s` after the previous one.
-    pub fn update(&mut self, p: &EncoderParams, raw: u16, dt_s: f32, max_step_counts: u32) -> EncoderUpdate {
+    /// `max_innovation_counts` bounds how far the count may land from where
+    /// the observer predicted it: a tighter test than the step bound, since
+    /// the prediction already carries the speed (a type-2 loop lags a
+    /// constant acceleration α by α/ki counts: ≈30 at the rotor's peak).
+    pub fn update(&mut self, p: &EncoderParams, raw: u16, dt_s: f32, max_step_counts: u32, max_innovation_counts: f32) -> EncoderUpdate {
         if !self.started {
             self.started = true;
             self.last_raw = raw;
@@ -44,10 +48,9 @@ impl EncoderTracker {
         let step = i32::from(raw.wrapping_sub(self.last_raw) as i16).wrapping_mul(p.direction);
         self.last_raw = raw;
         self.count = self.count.wrapping_add(step);
-        let implausible_step = step.unsigned_abs() > max_step_counts;
-
         self.est_frac += self.speed_counts_s * dt_s;
         let err = (self.count.wrapping_sub(self.est_base)) as f32 - self.est_frac;
+        let implausible_step = step.unsigned_abs() > max_step_counts || !(err.abs() <= max_innovation_counts);
         self.est_frac += p.pll_kp_per_s * err * dt_s;
         self.speed_counts_s += p.pll_ki_per_s2 * err * dt_s;
         let whole = crate::math::floor(self.est_frac);
