@@ -23,7 +23,8 @@ pub struct SensorSample {
 }
 
 impl SensorSample {
-    /// A sample with zero currents, a 48 V bus and no optional sensors.
+    /// A sample with zero currents, the given bus voltage and no optional
+    /// sensors.
     pub const fn idle(bus_voltage_v: f32) -> Self {
         Self {
             phase_current_a: [0.0; 3],

@@ -70,12 +70,7 @@ async fn main(_spawner: Spawner) {
     }
 
     let mut params = hw::PARAMS;
-    let clamped = hw::apply_board_limits(&mut params);
-    if clamped != hw::BoardLimitsApplied::default() {
-        warn!("parameters lowered to the board's ratings: {}", clamped);
-    }
-
-    let mut board = match hw::Board::new(p, params.rates.pwm_frequency_hz) {
+    let mut board = match board::bring_up(p, &mut params) {
         Ok(b) => b,
         Err(e) => {
             error!("board bring-up failed: {} (bridge off)", e);

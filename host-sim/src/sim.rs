@@ -34,7 +34,6 @@ pub struct ClosedLoop {
     periods: u64,
     pwm_period_s: f64,
     bus_voltage_v: f64,
-    last_sample: SensorSample,
     /// The plant's truth at the last sampling instant (the period start),
     /// which is the instant the telemetry describes.
     sampled_state: PlantState,
@@ -57,7 +56,6 @@ impl ClosedLoop {
             periods: 0,
             pwm_period_s,
             bus_voltage_v,
-            last_sample: SensorSample::idle(0.0),
             sampled_state: PlantState::default(),
             hardware_break_a: None,
             hardware_break_period: None,
@@ -124,15 +122,6 @@ impl ClosedLoop {
         self.bus_voltage_v = v;
     }
 
-    pub fn last_sample(&self) -> &SensorSample {
-        &self.last_sample
-    }
-
-    /// The bus voltage the plant is driven with.
-    pub fn bus_voltage_v(&self) -> f64 {
-        self.bus_voltage_v
-    }
-
     /// The command the core returned last period, applied over the next one.
     pub fn pending_command(&self) -> &PwmCommand {
         &self.pending
@@ -151,7 +140,7 @@ impl ClosedLoop {
 
     /// `step`, with `corrupt` given the sensor sample before the core sees
     /// it (fault injection: noise bursts, stuck sensors, encoder glitches,
-    /// NaN). `last_sample` records what the core saw.
+    /// NaN).
     pub fn step_with(&mut self, corrupt: impl FnOnce(&mut SensorSample)) -> Telemetry {
         let mut sample = self.plant.sample();
         self.sampled_state.clone_from(self.plant.state());
@@ -159,7 +148,6 @@ impl ClosedLoop {
         let cmd = self.controller.step(&sample);
         self.advance_period();
         self.pending = if self.hardware_break_period.is_some() { PwmCommand::OFF } else { cmd };
-        self.last_sample = sample;
         self.periods += 1;
         self.controller.telemetry()
     }

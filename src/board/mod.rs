@@ -11,7 +11,7 @@
 //! Add `src/board/<name>.rs` with the same public surface as
 //! [`b_g431b_esc1`]:
 //!
-//! - `NAME`, `clock_config()`, `apply_board_limits()`;
+//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()`;
 //! - `Board::new(peripherals, pwm_frequency_hz) -> Result<Board, BoardError>`;
 //! - an implementation of [`ServoBoard`] for `Board`;
 //! - the ADC end-of-injected-sequence interrupt handler that calls
@@ -31,6 +31,21 @@ pub mod watchdog;
 
 /// The board this image is built for.
 pub use b_g431b_esc1 as active;
+
+/// Lowers `params` (normally `active::PARAMS`) to the board's ratings —
+/// what was lowered is logged, never silent — and brings the board up for
+/// them. The firmware and the on-board tests both start here, so they run
+/// the same configuration.
+pub fn bring_up(
+    p: embassy_stm32::Peripherals,
+    params: &mut servo_core::ControlParams,
+) -> Result<active::Board, active::BoardError> {
+    let lowered = active::apply_board_limits(params);
+    if lowered != active::BoardLimitsApplied::default() {
+        defmt::warn!("parameters lowered to the board's ratings: {}", lowered);
+    }
+    active::Board::new(p, params.rates.pwm_frequency_hz)
+}
 
 /// The drive. The PWM interrupt steps it every period; the main task sends
 /// commands and reads telemetry between periods, each time inside a short

@@ -60,12 +60,11 @@ mod tests {
         let p = embassy_stm32::init(hw::clock_config());
         enable_cycle_counter();
         let mut params = hw::PARAMS;
-        let _ = hw::apply_board_limits(&mut params);
-        let pwm_hz = params.rates.pwm_frequency_hz;
-        let board = match hw::Board::new(p, pwm_hz) {
+        let board = match super::board::bring_up(p, &mut params) {
             Ok(b) => b,
             Err(e) => defmt::panic!("board bring-up failed: {}", e),
         };
+        let pwm_hz = params.rates.pwm_frequency_hz;
         let cpu_hz = board.cpu_hz();
         let tim_hz = board.pwm_timer_hz();
         info!("{} up: CPU {=u32} Hz, TIM1 {=u32} Hz, PWM {=f32} Hz", hw::NAME, cpu_hz, tim_hz, pwm_hz);

@@ -33,8 +33,7 @@ mod tests {
         let p = embassy_stm32::init(hw::clock_config());
         enable_cycle_counter();
         let mut params = hw::PARAMS;
-        let _ = hw::apply_board_limits(&mut params);
-        let b = match hw::Board::new(p, params.rates.pwm_frequency_hz) {
+        let b = match super::board::bring_up(p, &mut params) {
             Ok(b) => b,
             Err(e) => defmt::panic!("board bring-up failed: {}", e),
         };

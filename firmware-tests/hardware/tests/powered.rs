@@ -58,9 +58,7 @@ mod tests {
         let p = embassy_stm32::init(hw::clock_config());
         enable_cycle_counter();
         let mut params = hw::PARAMS;
-        let _ = hw::apply_board_limits(&mut params);
-        let pwm_hz = params.rates.pwm_frequency_hz;
-        let mut b = match hw::Board::new(p, pwm_hz) {
+        let mut b = match super::board::bring_up(p, &mut params) {
             Ok(b) => b,
             Err(e) => defmt::panic!("board bring-up failed: {}", e),
         };
@@ -96,6 +94,7 @@ mod tests {
         assert!(mode() == Mode::Disabled, "alignment ended in {}", mode());
         send(Command::Enable);
         wait_cycles(cpu_hz / 5);
+        let pwm_hz = params.rates.pwm_frequency_hz;
         State { _board: b, params, pwm_hz, cpu_hz }
     }
 
