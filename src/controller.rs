@@ -9,6 +9,7 @@ use crate::foc::{wrap_pi, CurrentLoop, Dq};
 use crate::foc::current_loop::RotorState;
 use crate::io::{PwmCommand, SensorSample};
 use crate::load_estimate::LoadEstimator;
+use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop, StopRamp, TrajectorySample};
 use crate::params::{ControlParams, ParamError};
 use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags, ThermalModel};
@@ -131,6 +132,8 @@ pub struct Controller {
     position_reference_m: f32,
     speed_reference_rad_s: f32,
     acceleration_reference_rad_s2: f32,
+    /// Coulomb friction fed forward to the speed loop, from the position period.
+    friction_ff_n_m: f32,
     current_reference: Dq,
     current_dq: Dq,
     voltage_dq: Dq,
@@ -199,6 +202,7 @@ impl Controller {
             position_reference_m: 0.0,
             speed_reference_rad_s: 0.0,
             acceleration_reference_rad_s2: 0.0,
+            friction_ff_n_m: 0.0,
             current_reference: Dq::default(),
             current_dq: Dq::default(),
             voltage_dq: Dq::default(),
@@ -416,6 +420,7 @@ impl Controller {
         self.current_reference = Dq::default();
         self.speed_reference_rad_s = 0.0;
         self.acceleration_reference_rad_s2 = 0.0;
+        self.friction_ff_n_m = 0.0;
         self.voltage_dq = Dq::default();
     }
 
@@ -605,6 +610,7 @@ impl Controller {
                 &self.params,
                 self.speed_reference_rad_s,
                 self.acceleration_reference_rad_s2,
+                self.friction_ff_n_m,
                 self.speed_rad_s(),
                 iq_max,
             );
@@ -673,14 +679,20 @@ impl Controller {
         if out.speed_limited {
             self.limits.insert(LimitFlags::SPEED);
         }
+        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, r.velocity_m_s, self.load.slow_force_n());
         let inertial_n = self.params.drive_train.moving_mass_kg * r.acceleration_m_s2;
         let dt = self.derived.position_period_s;
         match s.load_cell_force_n {
+            // The load cell sits beyond the nut and the seal: it feels the
+            // payload's inertia but none of the friction.
             Some(f) => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
             None => {
-                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n, dt);
+                // The estimate reads friction through the same torque-to-force
+                // scaling as the load, so the fed-forward torque goes with it.
+                let friction_n = self.friction_ff_n_m * self.params.drive_train.screw_efficiency / self.params.metres_per_rad();
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n + friction_n, dt);
             }
         }
     }

@@ -42,6 +42,17 @@ pub struct DriveTrainParams {
     pub moving_mass_kg: f32,
     /// Viscous friction seen at the motor shaft, for the speed feedforward.
     pub viscous_friction_n_m_s_rad: f32,
+    /// Load-independent Coulomb friction at the motor shaft (nut preload
+    /// drag plus the rod seal's Coulomb force through the lead), for the
+    /// friction feedforward.
+    pub coulomb_friction_n_m: f32,
+    /// Reference speed over which the friction feedforward's sign ramps from
+    /// 0 to ±1: a hard sign would chatter at standstill.
+    pub friction_feedforward_speed_rad_s: f32,
+    /// Share of the modelled Coulomb friction fed forward, 0 (off) to 1. On a
+    /// new rig start low and raise it while watching the tracking error at
+    /// move starts: above the true friction it pushes the rod ahead.
+    pub friction_feedforward_gain: f32,
 }
 
 /// Loop rates. The current loop runs every PWM period; the outer loops are
@@ -308,6 +319,12 @@ impl ControlParams {
             rotating_inertia_kg_m2: ROTATING_INERTIA,
             moving_mass_kg: MOVING_MASS_KG,
             viscous_friction_n_m_s_rad: 2.0e-4,
+            // Nut preload drag 0.03 N·m + rod seal 30 N × L/2π (0.024 N·m).
+            coulomb_friction_n_m: 0.054,
+            // 1 rad/s is 0.8 mm/s of rod: the S-curve passes it in ≈8 ms, so
+            // the friction step is taken as a ramp, not a kick to the rod mode.
+            friction_feedforward_speed_rad_s: 1.0,
+            friction_feedforward_gain: 1.0,
         },
         rates: RateParams { pwm_frequency_hz: 20_000.0, speed_loop_divider: 4, position_loop_divider: 20 },
         // Pole-zero cancellation: kp = L·ω_c, ki = R·ω_c with ω_c = 2π·1 kHz,
@@ -496,6 +513,14 @@ impl ControlParams {
         positive("control.drive_train.rotating_inertia_kg_m2", d.rotating_inertia_kg_m2)?;
         non_negative("control.drive_train.moving_mass_kg", d.moving_mass_kg)?;
         non_negative("control.drive_train.viscous_friction_n_m_s_rad", d.viscous_friction_n_m_s_rad)?;
+        non_negative("control.drive_train.coulomb_friction_n_m", d.coulomb_friction_n_m)?;
+        positive("control.drive_train.friction_feedforward_speed_rad_s", d.friction_feedforward_speed_rad_s)?;
+        non_negative("control.drive_train.friction_feedforward_gain", d.friction_feedforward_gain)?;
+        if d.friction_feedforward_gain > 1.0 {
+            // Above the modelled friction the feedforward drives the rod
+            // ahead of its reference at every start.
+            return Err(ParamError { field: "control.drive_train.friction_feedforward_gain", reason: "must be <= 1" });
+        }
         positive("control.rates.pwm_frequency_hz", self.rates.pwm_frequency_hz)?;
         nonzero("control.rates.speed_loop_divider", self.rates.speed_loop_divider)?;
         nonzero("control.rates.position_loop_divider", self.rates.position_loop_divider)?;

@@ -82,3 +82,32 @@ fn encoder_tracker_flags_an_impossible_jump() {
     let up = enc.update(&p.encoder, 100 + 5_000, 5e-5, p.faults.encoder_max_step_counts, p.faults.encoder_max_innovation_counts);
     assert!(up.implausible_step);
 }
+
+/// The drive's friction feedforward against the nominal plant's own friction
+/// laws: in steady motion well above the regularisation speed it must equal
+/// the Coulomb torque the plant integrates (screw μ|F|·L/2π + nut drag + the
+/// rod seal's Coulomb force through the lead), with the sign of the motion.
+#[test]
+fn friction_feedforward_matches_the_plants_coulomb_friction() {
+    use host_sim::config::RigConfig;
+    use host_sim::plant::friction::{RodFriction, ScrewFriction};
+    use servo_core::motion::speed_loop::friction_feedforward_n_m;
+    let rig = RigConfig::nominal().unwrap();
+    let pp = &rig.plant;
+    let screw = ScrewFriction::new(pp);
+    let rod = RodFriction::new(pp);
+    let r = pp.metres_per_rad();
+    for &(v, load) in &[(0.1_f64, 1380.0_f64), (-0.1, 1380.0), (0.05, 600.0), (-0.2, 200.0)] {
+        let omega = v / r;
+        // Coulomb part only: subtract the viscous terms the plant adds.
+        let screw_c = screw.coulomb_torque_n_m(omega, load);
+        let rod_c = (rod.force_n(v) - pp.rod.viscous_friction_n_s_m * v) * r;
+        let plant = screw_c + rod_c;
+        let ff = f64::from(friction_feedforward_n_m(&rig.control, v as f32, load as f32));
+        assert!((ff - plant).abs() < 0.02 * plant.abs(), "v {v}, load {load}: feedforward {ff}, plant {plant}");
+    }
+    // At rest the feedforward leaves the held load to the integrator, and a
+    // non-finite load estimate cannot poison it.
+    assert_eq!(friction_feedforward_n_m(&rig.control, 0.0, 1380.0), 0.0);
+    assert!(friction_feedforward_n_m(&rig.control, 0.1, f32::NAN).is_finite());
+}

@@ -52,3 +52,36 @@ fn paper_cycle_tracks_the_reference_and_shows_the_fig5_deformation() {
     // (2.5 m/s² on 140.7 kg ≈ 350 N) and the friction.
     assert!(s.peak_thrust_n > 1380.0 && s.peak_thrust_n < 1380.0 + 350.0 + 300.0, "{}", s.peak_thrust_n);
 }
+
+/// The observer's compensation, closed loop: the rod's terminal error
+/// (scale − reference) shrinks by far more than the motor-side tracking can
+/// explain, because the sag it removes is the 0.3 mm deformation itself. The
+/// issue's figure (≥ 90 %) is measured by `host-sim paper --observer`; this
+/// guards the behaviour with some margin for other seeds.
+#[test]
+fn observer_compensation_removes_most_of_the_terminal_error() {
+    let rig = RigConfig::nominal().unwrap();
+    let plain = StrokeCycle::paper(3);
+    let compensated = StrokeCycle { compensation: true, ..plain.clone() };
+    let before = run_stroke_cycle(&rig, &plain).unwrap();
+    let after = run_stroke_cycle(&rig, &compensated).unwrap();
+    assert_eq!(after.aborted, None);
+    let f = host_sim::report::metrics::observer_figures(&before, &after, plain.settle_s);
+    let reduction = 1.0 - f.terminal_error_max_mm_after / f.terminal_error_max_mm_before;
+    assert!(reduction > 0.85, "max terminal error {} → {} mm ({:.1} %)", f.terminal_error_max_mm_before, f.terminal_error_max_mm_after, 100.0 * reduction);
+    assert!(f.terminal_error_rms_mm_after < 0.02, "rms after {}", f.terminal_error_rms_mm_after);
+}
+
+/// Coulomb-friction feedforward: without it the speed PI has to wind the
+/// friction up at every move start, and the motor lags its command while it
+/// does. Same run with the feedforward off and on.
+#[test]
+fn friction_feedforward_cuts_the_move_start_lag() {
+    let rig = RigConfig::nominal().unwrap();
+    let mut off = rig.clone();
+    off.control.drive_train.friction_feedforward_gain = 0.0;
+    let cycle = StrokeCycle::paper(5);
+    let lag = |r: &RigConfig| paper_summary(&run_stroke_cycle(r, &cycle).unwrap(), 5, cycle.settle_s).motor_tracking_max_um;
+    let (with_ff, without_ff) = (lag(&rig), lag(&off));
+    assert!(with_ff < 0.8 * without_ff, "tracking max with feedforward {with_ff} µm, without {without_ff} µm");
+}

@@ -1,5 +1,5 @@
-//! Speed loop: PI on the tracked encoder speed, with acceleration and viscous
-//! feedforward, producing the q-axis current reference.
+//! Speed loop: PI on the tracked encoder speed, with acceleration, viscous
+//! and Coulomb-friction feedforward, producing the q-axis current reference.
 
 use crate::filters::Biquad;
 use crate::params::ControlParams;
@@ -30,17 +30,20 @@ impl SpeedLoop {
         self.torque_filter.reset();
     }
 
-    /// `current_limit_a` is the q-axis share of the current circle.
+    /// `current_limit_a` is the q-axis share of the current circle;
+    /// `friction_ff_n_m` comes from [`friction_feedforward_n_m`].
     pub fn step(
         &mut self,
         p: &ControlParams,
         speed_reference_rad_s: f32,
         acceleration_reference_rad_s2: f32,
+        friction_ff_n_m: f32,
         speed_measured_rad_s: f32,
         current_limit_a: f32,
     ) -> SpeedLoopOutput {
         let torque_ff = p.reflected_inertia_kg_m2() * acceleration_reference_rad_s2
-            + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s;
+            + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s
+            + friction_ff_n_m;
         let ff_a = torque_ff / p.torque_constant_n_m_a();
         let out = self.pi.update(
             &p.speed_pi,
@@ -55,4 +58,22 @@ impl SpeedLoop {
         let filtered = crate::math::clamp(self.torque_filter.update(out.value), -current_limit_a, current_limit_a);
         SpeedLoopOutput { current_q_reference_a: filtered, current_limited: out.saturated }
     }
+}
+
+/// The Coulomb friction a move meets, fed forward so the speed PI does not
+/// have to wind it up at every start: that wind-up is the motor's lag in the
+/// first tens of milliseconds of a move, and it adds straight to the rod's
+/// terminal error. The screw's share grows with the axial load as
+/// `(L/2π)·μ·|F|`, `μ = (1 − η)/η`, the law behind the forward efficiency η;
+/// `load_force_n` is the slow load estimate (weight and tilt). The sign
+/// follows the planned velocity, never the measured one, so the feedforward
+/// cannot close a loop around stick-slip.
+pub fn friction_feedforward_n_m(p: &ControlParams, velocity_reference_m_s: f32, load_force_n: f32) -> f32 {
+    let d = &p.drive_train;
+    let r = p.metres_per_rad();
+    let omega = velocity_reference_m_s / r;
+    let sign = crate::math::clamp(omega / d.friction_feedforward_speed_rad_s, -1.0, 1.0);
+    let mu = (1.0 - d.screw_efficiency) / d.screw_efficiency;
+    let load = if load_force_n.is_finite() { load_force_n.abs() } else { 0.0 };
+    d.friction_feedforward_gain * sign * (d.coulomb_friction_n_m + r * mu * load)
 }
