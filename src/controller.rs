@@ -12,7 +12,8 @@ use crate::load_estimate::LoadEstimator;
 use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop, StopRamp, TrajectorySample};
 use crate::params::{ControlParams, ParamError};
-use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags, ThermalModel};
+use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
+use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
 use core::f32::consts::PI;
 
@@ -72,7 +73,15 @@ pub enum CommandError {
 }
 
 /// Conditions evaluated at the speed-loop rate.
-const SPEED_RATE_CAUSES: FaultSet = FaultSet(FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0);
+const SPEED_RATE_CAUSES: FaultSet =
+    FaultSet(FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0 | FaultSet::OPEN_PHASE.0);
+/// Controlled-stop faults after which the drive does not hold on the motor:
+/// with a phase open, two phases leave angles with no torque, so once at
+/// rest the brake takes the load and the bridge goes off (a stop category 1,
+/// where the others hold under control, category 2). Without a brake the
+/// drive keeps holding: that beats dropping the load.
+const SAFE_STOP_THEN_BRAKE: FaultSet = FaultSet::OPEN_PHASE;
+
 /// Conditions evaluated at the position-loop rate.
 const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
 
@@ -87,6 +96,9 @@ struct Derived {
     metres_per_count: f32,
     rad_per_count: f32,
     pole_pairs: f32,
+    open_phase_window_ticks: u32,
+    brake_release_periods: u32,
+    brake_engage_periods: u32,
 }
 
 impl Derived {
@@ -100,8 +112,18 @@ impl Derived {
             metres_per_count: p.drive_train.screw_lead_m / cpr,
             rad_per_count: 2.0 * PI / cpr,
             pole_pairs: p.motor.pole_pairs as f32,
+            open_phase_window_ticks: periods(p.faults.open_phase_window_s, p.speed_period_s()),
+            brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
+            brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
         }
     }
+}
+
+/// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
+fn periods(duration_s: f32, period_s: f32) -> u32 {
+    let n = crate::math::clamp(duration_s / period_s, 1.0, u32::MAX as f32);
+    let whole = n as u32;
+    if (whole as f32) < n { whole.saturating_add(1) } else { whole }
 }
 
 /// The whole drive state. `step` is the only thing the ISR calls.
@@ -152,6 +174,16 @@ pub struct Controller {
     /// How long the encoder has shown no count while told to turn.
     no_count_s: f32,
     count_at_last_speed_tick: i32,
+    /// The q-current bound the speed loop had last (thermal foldback and
+    /// the d-current taken off the current circle).
+    q_current_limit_a: f32,
+    open_phase: OpenPhaseMonitor,
+    /// The open-phase check's last verdict (it keeps it through windows
+    /// that cannot judge).
+    open_phase_present: bool,
+    /// PWM periods since the brake was told to open (Running, Stopping) or
+    /// to close (Braking, once the stop ramp is at rest).
+    brake_periods: u32,
     bus_voltage_v: f32,
     terminal_position_m: Option<f32>,
     telemetry: Telemetry,
@@ -216,6 +248,10 @@ impl Controller {
             speed_error_s: 0.0,
             no_count_s: 0.0,
             count_at_last_speed_tick: 0,
+            q_current_limit_a: 0.0,
+            open_phase: OpenPhaseMonitor::new(),
+            open_phase_present: false,
+            brake_periods: 0,
             bus_voltage_v: 0.0,
             terminal_position_m: None,
             telemetry: Telemetry::default(),
@@ -264,6 +300,18 @@ impl Controller {
         self.raise(FaultSet::ISR_OVERRUN);
     }
 
+    /// The board calls this when its comparator break switched the outputs
+    /// off in hardware (timer break flag seen in the ISR).
+    pub fn report_bridge_break(&mut self) {
+        self.raise(FaultSet::BRIDGE_BREAK);
+    }
+
+    /// True while the brake is (being) held open: a planned move waits for
+    /// `brake.release_time_s` after `Enable`.
+    pub fn brake_opening(&self) -> bool {
+        self.params.brake.fitted && self.mode == Mode::Running && self.brake_periods < self.derived.brake_release_periods
+    }
+
     /// The board calls this at start-up if the independent watchdog caused
     /// the last reset: the drive then waits for an explicit clear.
     pub fn report_watchdog_reset(&mut self) {
@@ -283,7 +331,8 @@ impl Controller {
         }
         match self.mode {
             Mode::Running => self.begin_stop(),
-            Mode::Stopping => {}
+            // Already decelerating to rest.
+            Mode::Stopping | Mode::Braking => {}
             Mode::Disabled | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
         }
     }
@@ -311,17 +360,30 @@ impl Controller {
                 if self.tick > 0 && self.bus_voltage_v < self.params.faults.bus_undervoltage_v {
                     return Err(CommandError::BusLow);
                 }
-                if self.mode == Mode::Running {
-                    return Ok(CommandOutcome::Accepted);
+                match self.mode {
+                    Mode::Running => return Ok(CommandOutcome::Accepted),
+                    // The loops are holding: keep them, open the brake again.
+                    Mode::Braking => self.hold_here(),
+                    _ => {
+                        self.hold_here();
+                        self.reset_loops();
+                    }
                 }
-                self.hold_here();
-                self.reset_loops();
                 self.mode = Mode::Running;
+                self.brake_periods = 0;
                 Ok(CommandOutcome::Accepted)
             }
             Command::Disable => {
-                self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
-                self.reset_loops();
+                if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping) {
+                    // Stop, let the brake close under the loops, then switch off.
+                    let v = self.speed_rad_s() * self.params.metres_per_rad();
+                    self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
+                    self.brake_periods = 0;
+                    self.mode = Mode::Braking;
+                } else if self.mode != Mode::Braking {
+                    self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+                    self.reset_loops();
+                }
                 Ok(CommandOutcome::Accepted)
             }
             Command::MoveTo { position_m } => {
@@ -493,7 +555,7 @@ impl Controller {
         // Causes checked at the outer rates keep their last verdict between
         // their ticks, or a clear between two ticks would find them gone.
         present = present.union(if speed_tick {
-            self.check_speed_period()
+            self.check_speed_period(s.phase_current_a)
         } else {
             self.present.intersection(SPEED_RATE_CAUSES)
         });
@@ -505,16 +567,45 @@ impl Controller {
         self.present = present;
         self.raise(present.difference(FaultSet::INVALID_PARAMS));
 
-        let out = match self.mode {
-            Mode::Disabled | Mode::Fault => {
-                self.hold_here();
-                self.reset_loops();
-                // No current flows with the bridge off: the I²t model cools.
-                self.current_dq = Dq::default();
-                PwmCommand::OFF
-            }
+        let mut out = match self.mode {
+            Mode::Disabled | Mode::Fault => self.bridge_off(),
             Mode::Aligning => self.align_period(s),
-            Mode::Running | Mode::Stopping => self.run_period(s, position_tick, speed_tick),
+            Mode::Running | Mode::Stopping => {
+                self.brake_periods = self.brake_periods.saturating_add(1);
+                if self.mode == Mode::Stopping
+                    && self.params.brake.fitted
+                    && self.stop.at_rest()
+                    && self.faults.contains(SAFE_STOP_THEN_BRAKE)
+                {
+                    // A degraded motor should not be left holding: once the
+                    // stop is at rest, hand the load to the brake and switch off.
+                    self.brake_periods = 0;
+                    self.mode = Mode::Braking;
+                }
+                self.run_period(s, position_tick, speed_tick)
+            }
+            Mode::Braking => {
+                if self.stop.at_rest() {
+                    self.brake_periods = self.brake_periods.saturating_add(1);
+                }
+                if self.brake_periods > self.derived.brake_engage_periods {
+                    self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+                    self.bridge_off()
+                } else {
+                    self.run_period(s, position_tick, speed_tick)
+                }
+            }
+        };
+        out.brake_release = if self.params.brake.fitted {
+            match self.mode {
+                Mode::Running | Mode::Stopping | Mode::Aligning => true,
+                // Closing starts once the stop ramp is at rest.
+                Mode::Braking => !self.stop.at_rest(),
+                Mode::Disabled | Mode::Fault => false,
+            }
+        } else {
+            // No brake: the output follows the bridge and drives nothing.
+            out.enable
         };
         if position_tick {
             self.cut_telemetry();
@@ -522,9 +613,18 @@ impl Controller {
         out
     }
 
-    /// Winding temperature, speed following and encoder loss, at the speed
-    /// rate. Returns the standing conditions; raises the events.
-    fn check_speed_period(&mut self) -> FaultSet {
+    /// Bridge off: loops reset, the command follows the rod.
+    fn bridge_off(&mut self) -> PwmCommand {
+        self.hold_here();
+        self.reset_loops();
+        // No current flows with the bridge off: the I²t model cools.
+        self.current_dq = Dq::default();
+        PwmCommand::OFF
+    }
+
+    /// Winding temperature, speed following, encoder loss and open phases,
+    /// at the speed rate. Returns the standing conditions; raises the events.
+    fn check_speed_period(&mut self, phase_current_a: [f32; 3]) -> FaultSet {
         let mut present = FaultSet::NONE;
         let dt = self.derived.speed_period_s;
         let i2 = self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q;
@@ -543,10 +643,23 @@ impl Controller {
         let count = self.encoder.count();
         let moved = count != self.count_at_last_speed_tick;
         self.count_at_last_speed_tick = count;
-        if !matches!(self.mode, Mode::Running | Mode::Stopping) {
+        if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking) {
             self.speed_error_s = 0.0;
             self.no_count_s = 0.0;
+            // With the bridge off nothing can be judged; an open phase shows
+            // again within a window of the next enable.
+            self.open_phase.reset();
+            self.open_phase_present = false;
             return present;
+        }
+        let sc = SinCos::of(self.rotor_state().electrical_angle_rad);
+        let reference_a = inverse_clarke(inverse_park(self.current_reference, sc));
+        let window = self.derived.open_phase_window_ticks;
+        if let Some(open) = self.open_phase.update(&self.params.faults, window, reference_a, phase_current_a) {
+            self.open_phase_present = open;
+        }
+        if self.open_phase_present {
+            present.insert(FaultSet::OPEN_PHASE);
         }
         let f = &self.params.faults;
         let w_ref = self.speed_reference_rad_s;
@@ -571,11 +684,14 @@ impl Controller {
         if x < l.stroke_min_m - f.stroke_overtravel_m || x > l.stroke_max_m + f.stroke_overtravel_m {
             present.insert(FaultSet::STROKE_OVERTRAVEL);
         }
-        if matches!(self.mode, Mode::Running | Mode::Stopping)
-            && (self.position_command_m - x).abs() > f.position_following_error_m
-        {
+        let following = (self.position_command_m - x).abs();
+        if matches!(self.mode, Mode::Running | Mode::Stopping) && following > f.position_following_error_m {
             present.insert(FaultSet::POSITION_FOLLOWING);
         }
+        let brake_stronger = self.params.brake.fitted
+            && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m;
+        let stop_failed =
+            matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
         if self.mode == Mode::Running {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();
@@ -583,6 +699,11 @@ impl Controller {
             if rest > l.stroke_max_m + f.stroke_soft_margin_m || rest < l.stroke_min_m - f.stroke_soft_margin_m {
                 self.raise(FaultSet::SOFT_LIMIT);
             }
+        }
+        // The stop starts from the measured position: straying from it means
+        // the load is winning. The brake must take it before the end stop.
+        if stop_failed {
+            self.raise(FaultSet::STOP_FAILED);
         }
         present
     }
@@ -606,6 +727,7 @@ impl Controller {
             }
             let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
             let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
+            self.q_current_limit_a = iq_max;
             let out = self.speed_loop.step(
                 &self.params,
                 self.speed_reference_rad_s,
@@ -630,14 +752,19 @@ impl Controller {
         if out.voltage_limited {
             self.limits.insert(LimitFlags::VOLTAGE);
         }
-        PwmCommand { duty: out.duty, enable: true }
+        // `step` decides the brake output for the whole period.
+        PwmCommand { duty: out.duty, enable: true, brake_release: true }
     }
 
     /// The position reference for this period: the planned move, or the
     /// controlled stop.
     fn next_reference(&mut self) -> TrajectorySample {
-        if self.mode == Mode::Stopping {
+        if matches!(self.mode, Mode::Stopping | Mode::Braking) {
             return self.stop.advance(self.derived.position_period_s);
+        }
+        if self.brake_opening() {
+            // The move waits for the brake: hold its start.
+            return self.trajectory.sample(0.0);
         }
         let t = self.move_ticks as f32 * self.derived.position_period_s;
         self.move_ticks = self.move_ticks.saturating_add(1);

@@ -44,10 +44,13 @@ pub struct PwmCommand {
     pub duty: [f32; 3],
     /// False: all six switches off (outputs disabled, motor coasts).
     pub enable: bool,
+    /// True: energise the holding brake's coil (brake open). The brake is
+    /// spring-applied, so a dead board, a reset or `false` holds the rod.
+    pub brake_release: bool,
 }
 
 impl PwmCommand {
-    /// All switches off. Duties sit at 50 % so re-enabling starts from zero
-    /// average voltage.
-    pub const OFF: Self = Self { duty: [0.5; 3], enable: false };
+    /// All switches off, brake applied. Duties sit at 50 % so re-enabling
+    /// starts from zero average voltage.
+    pub const OFF: Self = Self { duty: [0.5; 3], enable: false, brake_release: false };
 }

@@ -168,7 +168,7 @@ async fn main(_spawner: Spawner) {
         let led = match mode {
             Mode::Running | Mode::Aligning => true,
             Mode::Disabled => (tick / (TELEMETRY_HZ as u32 / 2)).is_multiple_of(2),
-            Mode::Fault | Mode::Stopping => (tick / (TELEMETRY_HZ as u32 / 10)).is_multiple_of(2),
+            Mode::Fault | Mode::Stopping | Mode::Braking => (tick / (TELEMETRY_HZ as u32 / 10)).is_multiple_of(2),
         };
         board.set_led(led);
 

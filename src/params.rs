@@ -160,6 +160,35 @@ pub struct FaultParams {
     pub current_sum_max_a: f32,
     /// …for this many consecutive PWM periods.
     pub current_sum_periods: u32,
+    /// A controlled stop that lets the rod stray this far from its own path
+    /// cannot hold the load: escalate to bridge off with the brake applied,
+    /// if the brake holds more than the motor can at its present limit.
+    pub stop_following_error_m: f32,
+    /// Open-phase check: judged over windows of this length…
+    pub open_phase_window_s: f32,
+    /// …in which the reference asks a phase for at least this mean |i|…
+    pub open_phase_current_a: f32,
+    /// …and the phase carries less than this share of it.
+    pub open_phase_ratio: f32,
+}
+
+/// The spring-applied holding brake on the motor shaft (power to open).
+/// A vertical leg must not drop its payload when the bridge goes off.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+pub struct BrakeParams {
+    /// False: no brake; `Disable` switches the bridge off at once.
+    pub fitted: bool,
+    /// Coil energised to brake open (catalogue release time): a move waits
+    /// this long after `Enable`.
+    pub release_time_s: f32,
+    /// Coil off to brake holding: after `Disable` the loops hold the rod
+    /// this long before the bridge goes off.
+    pub engage_time_s: f32,
+    /// Static holding torque at the motor shaft. A failing controlled stop
+    /// hands the load to the brake only when the brake is the stronger of
+    /// the two (the motor's current limit may have folded back).
+    pub holding_torque_n_m: f32,
 }
 
 /// I²t winding protection: a first-order thermal model normalised to the
@@ -249,6 +278,7 @@ pub struct ControlParams {
     pub thermal: ThermalParams,
     pub ratings: RatingParams,
     pub compensation: CompensationParams,
+    pub brake: BrakeParams,
 }
 
 const CURRENT_BANDWIDTH_RAD_S: f32 = 2.0 * PI * 1000.0;
@@ -409,6 +439,16 @@ impl ControlParams {
             // 0.5 ms: noise on three channels (σ_Σ = 1.7 A for 1 A each) stays
             // above 3 A ten periods running with odds of 1e-11.
             current_sum_periods: 10,
+            // 3 mm: the stop starts from the measured position, so anything
+            // near the 5 mm following trip means the load is winning.
+            stop_following_error_m: 0.003,
+            // 2 ms is a tenth of an electrical turn at rated speed and two
+            // windows fit in the 5 ms the open-phase scenario allows; 3 A
+            // mean is a quarter of rated current, far above sensor noise;
+            // an open lead carries noise only (< 5 %), a healthy phase 100 %.
+            open_phase_window_s: 0.002,
+            open_phase_current_a: 3.0,
+            open_phase_ratio: 0.2,
         },
         load_estimate: LoadEstimateParams { filter_hz: 5.0 },
         // Rated current: enough torque to pull the rotor against the screw's
@@ -432,6 +472,9 @@ impl ControlParams {
         // taken up in 15 ms, faster than the load changes, and a jump in the
         // load estimate moves the rod at most 20 µm per millisecond.
         compensation: CompensationParams { enabled_at_start: false, shift_max_m: 0.0015, shift_rate_max_m_s: 0.02 },
+        // Catalogue class for a 2.5 N·m spring-applied servo brake (≈2× the
+        // 1.1 N·m that holds rated thrust): 50 ms to open, 30 ms to close.
+        brake: BrakeParams { fitted: true, release_time_s: 0.05, engage_time_s: 0.03, holding_torque_n_m: 2.5 },
     };
 }
 
@@ -611,6 +654,17 @@ impl ControlParams {
         positive("control.faults.observer_shift_max_m", f.observer_shift_max_m)?;
         positive("control.faults.current_sum_max_a", f.current_sum_max_a)?;
         nonzero("control.faults.current_sum_periods", f.current_sum_periods)?;
+        positive("control.faults.stop_following_error_m", f.stop_following_error_m)?;
+        positive("control.faults.open_phase_window_s", f.open_phase_window_s)?;
+        positive("control.faults.open_phase_current_a", f.open_phase_current_a)?;
+        positive("control.faults.open_phase_ratio", f.open_phase_ratio)?;
+        if f.open_phase_ratio >= 1.0 {
+            return Err(ParamError { field: "control.faults.open_phase_ratio", reason: "must be < 1" });
+        }
+        let b = &self.brake;
+        non_negative("control.brake.release_time_s", b.release_time_s)?;
+        non_negative("control.brake.engage_time_s", b.engage_time_s)?;
+        non_negative("control.brake.holding_torque_n_m", b.holding_torque_n_m)?;
         let c = &self.compensation;
         positive("control.compensation.shift_max_m", c.shift_max_m)?;
         if c.shift_max_m > f.observer_shift_max_m {

@@ -19,6 +19,10 @@ pub enum Mode {
     Stopping,
     /// A fault latched; bridge off until cleared.
     Fault,
+    /// `Disable` with a brake fitted: stopping on the stop ramp, then holding
+    /// while the brake closes; the bridge goes off after
+    /// `brake.engage_time_s` so the load never hangs on nothing.
+    Braking,
 }
 
 /// A snapshot of the drive, refreshed every position-loop period.

@@ -97,7 +97,7 @@ impl ClosedLoop {
         let h = self.pwm_period_s / f64::from(n);
         self.period_peak_current_a = 0.0;
         for _ in 0..n {
-            let cmd = if self.hardware_break_period.is_some() { PwmCommand::OFF } else { self.pending };
+            let cmd = if self.hardware_break_period.is_some() { broken(&self.pending) } else { self.pending };
             self.plant.advance(&cmd, self.bus_voltage_v, h);
             let peak = peak_now(&self.plant);
             self.period_peak_current_a = self.period_peak_current_a.max(peak);
@@ -106,7 +106,7 @@ impl ClosedLoop {
             }
         }
         if self.hardware_break_period.is_some() {
-            self.pending = PwmCommand::OFF;
+            self.pending = broken(&self.pending);
         }
     }
 
@@ -145,9 +145,13 @@ impl ClosedLoop {
         let mut sample = self.plant.sample();
         self.sampled_state.clone_from(self.plant.state());
         corrupt(&mut sample);
+        // The board's ISR reads the timer's break flag before the step.
+        if self.hardware_break_period.is_some() {
+            self.controller.report_bridge_break();
+        }
         let cmd = self.controller.step(&sample);
         self.advance_period();
-        self.pending = if self.hardware_break_period.is_some() { PwmCommand::OFF } else { cmd };
+        self.pending = if self.hardware_break_period.is_some() { broken(&cmd) } else { cmd };
         self.periods += 1;
         self.controller.telemetry()
     }
@@ -184,4 +188,10 @@ impl ClosedLoop {
             phase_current_peak_a: s.phase_current_a.iter().fold(0.0_f64, |m, i| m.max(i.abs())),
         }
     }
+}
+
+/// What the timer applies after its break fired: outputs off in hardware;
+/// the brake pin is a GPIO the break does not touch, so it follows the core.
+fn broken(cmd: &PwmCommand) -> PwmCommand {
+    PwmCommand { brake_release: cmd.brake_release, ..PwmCommand::OFF }
 }

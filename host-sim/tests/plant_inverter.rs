@@ -10,9 +10,12 @@ use servo_core::PwmCommand;
 
 const BUS_V: f64 = 48.0;
 
-/// Vertical, rated load, held at 450 mm, then PWM off: the load falls.
+/// Vertical, rated load, held at 450 mm, then PWM off: the load falls (no
+/// holding brake on this rig; the inverter's diodes are under test).
 fn falling_plant() -> Plant {
-    let mut plant = Plant::new(PlantParams::default(), 1);
+    let mut params = PlantParams::default();
+    params.brake.fitted = false;
+    let mut plant = Plant::new(params, 1);
     let lead = plant.params().screw.lead_m;
     plant.set_initial_state(0.45 * TAU / lead, FRAC_PI_2);
     plant
@@ -105,7 +108,7 @@ fn overspeed_is_braked_by_diode_rectification_into_the_bus() {
 #[test]
 fn out_of_range_duties_saturate_and_are_counted() {
     let mut plant = Plant::new(PlantParams::default(), 1);
-    plant.advance(&PwmCommand { duty: [1.2, 0.5, f32::NAN], enable: true }, BUS_V, PWM_PERIOD_S);
+    plant.advance(&PwmCommand { duty: [1.2, 0.5, f32::NAN], enable: true, brake_release: true }, BUS_V, PWM_PERIOD_S);
     assert_eq!(plant.state().duty_saturation_count, 2);
     assert_eq!(plant.drive(), Drive::Pwm([1.0, 0.5, 0.0]));
     // Phase-to-neutral voltages of duties (1, 0.5, 0): (+24, 0, −24) V.

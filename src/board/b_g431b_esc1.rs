@@ -17,6 +17,7 @@
 //! | power-stage NTC          | PB14 → ADC1_IN5                                  |
 //! | encoder A / B (Hall H1/H2)| PB6 / PB7 = TIM4_CH1/CH2 (AF2), x4 quadrature   |
 //! | LED / button             | PC6 / PC10 (active low)                          |
+//! | holding-brake driver     | PB8 (Hall H3 / encoder Z pad, free with A/B): high = coil on, brake open |
 //! | overcurrent              | COMP1/2/4 (+: PA1/PA7/PB0, −: DAC3) → TIM1 BRK   |
 //!
 //! The ESC1 has no external break pin wired; its overcurrent protection is
@@ -298,6 +299,9 @@ pub struct Board {
     _analog: [Flex<'static>; 11],
     _encoder: Qei<'static, TIM4>,
     led: Output<'static>,
+    /// Written from the ISR through BSRR (atomic); kept here so the pin
+    /// stays configured as an output.
+    _brake: Output<'static>,
     button: Input<'static>,
     cpu_hz: u32,
     pwm_timer_hz: u32,
@@ -392,6 +396,9 @@ impl Board {
         });
 
         let led = Output::new(p.PC6, Level::Low, Speed::Low);
+        // Low at reset and here: the spring-applied brake holds until the
+        // core asks for it open (an external low-side switch drives the coil).
+        let brake = Output::new(p.PB8, Level::Low, Speed::Low);
         let button = Input::new(p.PC10, Pull::Up);
 
         // The time driver (TIM2) and anything else stay below the PWM interrupt.
@@ -412,6 +419,7 @@ impl Board {
             _analog: analog,
             _encoder: encoder,
             led,
+            _brake: brake,
             button,
             cpu_hz: hclk_hz,
             pwm_timer_hz: tim_hz,
@@ -831,6 +839,13 @@ impl IsrCtx {
     /// take effect at the next valley; MOE acts at once.
     fn apply(&mut self, cmd: PwmCommand) {
         let t = pac::TIM1;
+        pac::GPIOB.bsrr().write(|w| {
+            if cmd.brake_release {
+                w.set_bs(8, true)
+            } else {
+                w.set_br(8, true)
+            }
+        });
         let [a, b, c] = cmd.duty;
         let finite = a.is_finite() && b.is_finite() && c.is_finite();
         if cmd.enable && !finite {
@@ -917,10 +932,11 @@ fn ADC1_2() {
         ctx.last_entry_cycles = t0;
         ctx.have_last_entry = true;
         if break_fired && !ctx.hw_trip {
-            // Hardware already cleared MOE; make the controller stop pushing
-            // (its loops would wind up against a dead bridge).
+            // Hardware already cleared MOE; the controller latches the trip
+            // (bridge off, brake applied) so its loops stop pushing against a
+            // dead bridge and the operator sees why.
             ctx.hw_trip = true;
-            super::disable_controller(cs);
+            super::report_bridge_break(cs);
         }
         ctx.bus_voltage_v = raw.vbus as f32 * cal::VBUS_VOLTS_PER_CODE;
         ctx.temperature_c =

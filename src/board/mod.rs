@@ -100,14 +100,14 @@ pub fn report_overrun(cs: CriticalSection<'_>) {
     }
 }
 
-/// Switches the bridge off from the PWM interrupt, e.g. after a hardware
-/// overcurrent break (the board latches its own flag; the operator clears
-/// both, see `main`).
+/// Latches `BRIDGE_BREAK` from the PWM interrupt after the hardware
+/// overcurrent break fired (the board latches its own flag too; the operator
+/// clears both, see `main`).
 #[inline(always)]
-pub fn disable_controller(cs: CriticalSection<'_>) {
+pub fn report_bridge_break(cs: CriticalSection<'_>) {
     if let Ok(mut slot) = CONTROLLER.borrow(cs).try_borrow_mut() {
         if let Some(c) = slot.as_mut() {
-            let _ = c.command(servo_core::Command::Disable);
+            c.report_bridge_break();
         }
     }
 }

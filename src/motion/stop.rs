@@ -24,6 +24,11 @@ impl StopRamp {
         self.position_m + v * v.abs() / (2.0 * self.deceleration_m_s2)
     }
 
+    /// The ramp has reached zero velocity.
+    pub fn at_rest(&self) -> bool {
+        self.velocity_m_s == 0.0
+    }
+
     /// Advances `dt_s` and returns the new reference.
     pub fn advance(&mut self, dt_s: f32) -> TrajectorySample {
         let v0 = self.velocity_m_s;

@@ -6,7 +6,7 @@
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(transparent))]
-pub struct FaultSet(pub u16);
+pub struct FaultSet(pub u32);
 
 impl FaultSet {
     pub const NONE: Self = Self(0);
@@ -44,19 +44,37 @@ impl FaultSet {
     /// open-circuit current sensor (a star-connected motor has no path for a
     /// common-mode current).
     pub const CURRENT_SENSOR: Self = Self(1 << 15);
+    /// One phase carries no current while the reference needs it there: a
+    /// broken motor lead or a dead inverter leg. The phase currents still
+    /// sum to zero (the other two carry ±the same), so `CURRENT_SENSOR`
+    /// cannot see it.
+    pub const OPEN_PHASE: Self = Self(1 << 16);
+    /// The board's comparator break switched the outputs off in hardware
+    /// (board-reported): the core must not carry on as if it were driving.
+    pub const BRIDGE_BREAK: Self = Self(1 << 17);
+    /// A controlled stop could not hold the motion: the rod left the stop's
+    /// path by more than `faults.stop_following_error_m` while the motor's
+    /// present current limit gives less torque than the brake holds.
+    /// Escalates to the bridge off with the holding brake engaged.
+    pub const STOP_FAILED: Self = Self(1 << 18);
 
     /// Faults whose reaction is a controlled stop, not switching off. The
-    /// motor, its sensors and the bridge still work; only the motion is
+    /// motor, its sensors and the bridge still work (with an open phase, two
+    /// phases still make torque over most of a turn); only the motion is
     /// wrong. Switching off would let a vertical payload back-drive the
     /// screw (η ≈ 0.89 backwards), so the drive decelerates at
     /// `faults.stop_deceleration_m_s2` and holds. All other faults mean the
     /// drive cannot trust its measurements or its power stage: bridge off.
     pub const CONTROLLED_STOP: Self = Self(
-        Self::POSITION_FOLLOWING.0 | Self::SPEED_FOLLOWING.0 | Self::SOFT_LIMIT.0 | Self::OBSERVER_OUT_OF_BOUNDS.0,
+        Self::POSITION_FOLLOWING.0
+            | Self::SPEED_FOLLOWING.0
+            | Self::SOFT_LIMIT.0
+            | Self::OBSERVER_OUT_OF_BOUNDS.0
+            | Self::OPEN_PHASE.0,
     );
 
     /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 16] = [
+    pub const ALL: [(Self, &'static str); 19] = [
         (Self::OVERCURRENT, "overcurrent"),
         (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
         (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
@@ -73,6 +91,9 @@ impl FaultSet {
         (Self::OBSERVER_OUT_OF_BOUNDS, "observer_out_of_bounds"),
         (Self::WATCHDOG_RESET, "watchdog_reset"),
         (Self::CURRENT_SENSOR, "current_sensor"),
+        (Self::OPEN_PHASE, "open_phase"),
+        (Self::BRIDGE_BREAK, "bridge_break"),
+        (Self::STOP_FAILED, "stop_failed"),
     ];
 
     pub const fn is_empty(self) -> bool {
@@ -91,7 +112,7 @@ impl FaultSet {
         Self(self.0 | other.0)
     }
 
-    pub const fn bits(self) -> u16 {
+    pub const fn bits(self) -> u32 {
         self.0
     }
 

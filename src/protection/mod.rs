@@ -2,8 +2,10 @@
 
 pub mod faults;
 pub mod limits;
+pub mod open_phase;
 pub mod thermal;
 
 pub use faults::FaultSet;
 pub use limits::{clamp_to_stroke, LimitFlags};
+pub use open_phase::OpenPhaseMonitor;
 pub use thermal::ThermalModel;

@@ -401,6 +401,8 @@ impl Family for ClosedLoop {
             cmd = PwmCommand {
                 duty: [f(out[0]), f(out[1]), f(out[2])],
                 enable: out[3] != 0,
+                // The golden rigid plant has no brake: the output acts on nothing.
+                brake_release: true,
             };
             emit(&input, &out);
         }

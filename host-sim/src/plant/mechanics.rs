@@ -44,6 +44,8 @@ pub struct Inputs {
     pub load_force_n: f64,
     /// A phase disconnected from the inverter (fault injection), if any.
     pub open_phase: Option<usize>,
+    /// The holding brake on the motor shaft.
+    pub brake: super::brake::BrakeTorque,
 }
 
 /// Everything one right-hand-side evaluation computes.
@@ -177,7 +179,7 @@ impl Model {
             di_d,
             di_q,
             w_m,
-            (motor_torque - coupling_torque - self.b_m * w_m) / self.j_m,
+            (motor_torque - coupling_torque - self.b_m * w_m + inp.brake.torque_n_m(th_m, w_m)) / self.j_m,
             w_s,
             (coupling_torque - self.metres_per_rad * axial_force - screw_friction_torque) / self.j_s,
             v,

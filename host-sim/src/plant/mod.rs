@@ -11,6 +11,7 @@
 //! terminal position is the rod's; terminal error = terminal − motor side,
 //! negative under a compressive load. See `docs/plant.md`.
 
+pub mod brake;
 pub mod deformation;
 pub mod frames;
 pub mod friction;
@@ -79,6 +80,8 @@ pub struct PlantState {
     pub external_force_n: f64,
     pub bus_voltage_v: f64,
     pub inverter_enabled: bool,
+    /// The holding brake's disc is holding the motor shaft.
+    pub brake_engaged: bool,
     /// Duties outside [0, 1] (or NaN) the inverter saturated so far.
     pub duty_saturation_count: u64,
 }
@@ -99,6 +102,7 @@ pub struct Plant {
     duty_saturation_count: u64,
     /// A phase disconnected from the inverter (fault injection).
     open_phase: Option<usize>,
+    brake: brake::Brake,
     sensors: sensors::Sensors,
     state: PlantState,
 }
@@ -134,6 +138,7 @@ impl Plant {
             force_guess: 0.0,
             duty_saturation_count: 0,
             open_phase: None,
+            brake: brake::Brake::new(&params.brake),
             state: PlantState::default(),
             params,
         };
@@ -197,12 +202,14 @@ impl Plant {
     /// # Panics
     /// On a negative or non-finite duration or bus voltage (a caller bug).
     pub fn advance(&mut self, cmd: &PwmCommand, bus_voltage_v: f64, duration_s: f64) {
+        self.brake.command(cmd.brake_release);
         let duty = cmd.enable.then(|| cmd.duty.map(f64::from));
         self.advance_duties(duty, bus_voltage_v, duration_s);
     }
 
     /// `advance` with f64 duties (`None`: switches off). For tests and
-    /// studies that must not see the f32 rounding of a `PwmCommand`.
+    /// studies that must not see the f32 rounding of a `PwmCommand`. The
+    /// holding brake keeps its last command.
     ///
     /// # Panics
     /// As `advance`.
@@ -218,8 +225,13 @@ impl Plant {
             let h = duration_s / steps;
             for _ in 0..steps as u64 {
                 self.drive = self.drive_for(duty, bus_voltage_v);
-                let inputs =
-                    Inputs { drive: self.drive, bus_v: bus_voltage_v, load_force_n: load, open_phase: self.open_phase };
+                let inputs = Inputs {
+                    drive: self.drive,
+                    bus_v: bus_voltage_v,
+                    load_force_n: load,
+                    open_phase: self.open_phase,
+                    brake: self.brake.torque_law(),
+                };
                 let model = &self.model;
                 let guess = &mut self.force_guess;
                 self.x = integrator::rk4_step(&self.x, h, |s| model.evaluate(s, &inputs, guess).deriv);
@@ -229,6 +241,7 @@ impl Plant {
                     (Drive::Pwm(_), Some(k)) => self.force_open_phase(k),
                     (Drive::Pwm(_), None) => {}
                 }
+                self.brake.after_step(h, self.x[THETA_M]);
                 self.time_s += h;
             }
         }
@@ -311,7 +324,13 @@ impl Plant {
     }
 
     fn inputs(&self) -> Inputs {
-        Inputs { drive: self.drive, bus_v: self.bus_v, load_force_n: self.load_force_n(), open_phase: self.open_phase }
+        Inputs {
+            drive: self.drive,
+            bus_v: self.bus_v,
+            load_force_n: self.load_force_n(),
+            open_phase: self.open_phase,
+            brake: self.brake.torque_law(),
+        }
     }
 
     fn force_open_phase(&mut self, k: usize) {
@@ -386,6 +405,7 @@ impl Plant {
             external_force_n: self.external_force_n,
             bus_voltage_v: self.bus_v,
             inverter_enabled: matches!(self.drive, Drive::Pwm(_)),
+            brake_engaged: self.brake.engaged(),
             duty_saturation_count: self.duty_saturation_count,
         };
     }

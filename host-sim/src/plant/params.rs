@@ -211,6 +211,7 @@ pub struct PlantParams {
     pub friction: FrictionParams,
     pub sensors: SensorParams,
     pub integration: IntegrationParams,
+    pub brake: super::brake::BrakeParams,
 }
 
 impl Default for PlantParams {
@@ -293,6 +294,7 @@ impl Default for PlantParams {
                 load_cell_noise_n: 2.0,
             },
             integration: IntegrationParams { pwm_frequency_hz: 20_000.0, substeps_per_pwm_period: 4 },
+            brake: super::brake::BrakeParams::default(),
         }
     }
 }
