@@ -11,7 +11,7 @@ use crate::io::{PwmCommand, SensorSample};
 use crate::load_estimate::LoadEstimator;
 use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop, StopRamp, TrajectorySample};
-use crate::params::{ControlParams, ParamError};
+use crate::params::{ControlParams, ParamError, ValidatedParams};
 use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
 use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
@@ -209,8 +209,13 @@ impl Controller {
 
     /// A controller for `params`, or the first parameter that is unusable.
     pub fn try_new(params: ControlParams) -> Result<Self, ParamError> {
-        params.validate()?;
-        Ok(Self::build(params))
+        ValidatedParams::new(params).map(Self::from_validated)
+    }
+
+    /// A controller for a set already checked (at compile time, in the
+    /// firmware).
+    pub fn from_validated(params: ValidatedParams) -> Self {
+        Self::build(*params.get())
     }
 
     fn build(params: ControlParams) -> Self {

@@ -69,8 +69,8 @@ async fn main(_spawner: Spawner) {
         warn!("core peripherals already taken: ISR cycle figures will read 0");
     }
 
-    let mut params = hw::PARAMS;
-    let mut board = match board::bring_up(p, &mut params) {
+    let params = *board::VALID_PARAMS.get();
+    let mut board = match board::bring_up(p) {
         Ok(b) => b,
         Err(e) => {
             error!("board bring-up failed: {} (bridge off)", e);
@@ -103,10 +103,8 @@ async fn main(_spawner: Spawner) {
     };
     info!("current offsets (ADC codes) U/V/W = {}", offsets);
 
-    if let Err(e) = params.validate() {
-        error!("parameter `{=str}` {=str}: the controller will not enable", e.field, e.reason);
-    }
-    let mut controller = Controller::new(params);
+    // Validated when the image was built (board::VALID_PARAMS).
+    let mut controller = Controller::from_validated(board::VALID_PARAMS);
     if watchdog_reset {
         controller.report_watchdog_reset();
     }
@@ -177,8 +175,8 @@ async fn main(_spawner: Spawner) {
             let status = board.status();
             let ns_per_cycle = 1.0e9 / board.cpu_hz() as f32;
             info!(
-                "hb up={=u64}s mode={} faults={} bus={=f32}V temp={=f32}C hw_ocp_trip={=bool} isr: n={=u32} overruns={=u32} late={=u32} worst={=u32}cyc ({=f32}us) latency={=f32}us",
-                Instant::now().as_secs(),
+                "hb up={=u32}s mode={} faults={} bus={=f32}V temp={=f32}C hw_ocp_trip={=bool} isr: n={=u32} overruns={=u32} late={=u32} worst={=u32}cyc ({=f32}us) latency={=f32}us",
+                tick / TELEMETRY_HZ as u32,
                 mode,
                 telemetry.faults,
                 status.bus_voltage_v,

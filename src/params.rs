@@ -494,6 +494,26 @@ impl ControlParams {
     };
 }
 
+/// A parameter set that passed [`ControlParams::validate`]. A controller
+/// built from one needs no check at run time: the firmware makes its set in
+/// a `const`, so an invalid one is a compile error naming the field (and the
+/// image carries neither the checks nor their messages).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValidatedParams(ControlParams);
+
+impl ValidatedParams {
+    pub const fn new(p: ControlParams) -> Result<Self, ParamError> {
+        match p.validate() {
+            Ok(()) => Ok(Self(p)),
+            Err(e) => Err(e),
+        }
+    }
+
+    pub const fn get(&self) -> &ControlParams {
+        &self.0
+    }
+}
+
 impl Default for ControlParams {
     fn default() -> Self {
         Self::DEFAULT
@@ -514,7 +534,7 @@ impl core::fmt::Display for ParamError {
     }
 }
 
-fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
+const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
         Err(ParamError { field, reason: "must be finite" })
     } else if v <= 0.0 {
@@ -524,7 +544,7 @@ fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
     }
 }
 
-fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
+const fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
         Err(ParamError { field, reason: "must be finite" })
     } else if v < 0.0 {
@@ -534,53 +554,62 @@ fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
     }
 }
 
-fn nonzero(field: &'static str, v: u32) -> Result<(), ParamError> {
+const fn nonzero(field: &'static str, v: u32) -> Result<(), ParamError> {
     if v == 0 { Err(ParamError { field, reason: "must be >= 1" }) } else { Ok(()) }
+}
+
+/// `?` for `const fn`s (the trait-based `?` is not const).
+macro_rules! check {
+    ($e:expr) => {
+        if let Err(e) = $e {
+            return Err(e);
+        }
+    };
 }
 
 impl ControlParams {
     /// Refuses a parameter set the loops cannot run with, naming the field.
-    pub fn validate(&self) -> Result<(), ParamError> {
+    pub const fn validate(&self) -> Result<(), ParamError> {
         let m = &self.motor;
-        nonzero("control.motor.pole_pairs", m.pole_pairs)?;
-        positive("control.motor.phase_resistance_ohm", m.phase_resistance_ohm)?;
-        positive("control.motor.inductance_d_h", m.inductance_d_h)?;
-        positive("control.motor.inductance_q_h", m.inductance_q_h)?;
-        positive("control.motor.flux_linkage_wb", m.flux_linkage_wb)?;
+        check!(nonzero("control.motor.pole_pairs", m.pole_pairs));
+        check!(positive("control.motor.phase_resistance_ohm", m.phase_resistance_ohm));
+        check!(positive("control.motor.inductance_d_h", m.inductance_d_h));
+        check!(positive("control.motor.inductance_q_h", m.inductance_q_h));
+        check!(positive("control.motor.flux_linkage_wb", m.flux_linkage_wb));
         let d = &self.drive_train;
-        positive("control.drive_train.screw_lead_m", d.screw_lead_m)?;
-        positive("control.drive_train.screw_efficiency", d.screw_efficiency)?;
+        check!(positive("control.drive_train.screw_lead_m", d.screw_lead_m));
+        check!(positive("control.drive_train.screw_efficiency", d.screw_efficiency));
         if d.screw_efficiency > 1.0 {
             return Err(ParamError { field: "control.drive_train.screw_efficiency", reason: "must be <= 1" });
         }
-        positive("control.drive_train.rotating_inertia_kg_m2", d.rotating_inertia_kg_m2)?;
-        non_negative("control.drive_train.moving_mass_kg", d.moving_mass_kg)?;
-        non_negative("control.drive_train.viscous_friction_n_m_s_rad", d.viscous_friction_n_m_s_rad)?;
-        non_negative("control.drive_train.coulomb_friction_n_m", d.coulomb_friction_n_m)?;
-        positive("control.drive_train.friction_feedforward_speed_rad_s", d.friction_feedforward_speed_rad_s)?;
-        non_negative("control.drive_train.friction_feedforward_gain", d.friction_feedforward_gain)?;
+        check!(positive("control.drive_train.rotating_inertia_kg_m2", d.rotating_inertia_kg_m2));
+        check!(non_negative("control.drive_train.moving_mass_kg", d.moving_mass_kg));
+        check!(non_negative("control.drive_train.viscous_friction_n_m_s_rad", d.viscous_friction_n_m_s_rad));
+        check!(non_negative("control.drive_train.coulomb_friction_n_m", d.coulomb_friction_n_m));
+        check!(positive("control.drive_train.friction_feedforward_speed_rad_s", d.friction_feedforward_speed_rad_s));
+        check!(non_negative("control.drive_train.friction_feedforward_gain", d.friction_feedforward_gain));
         if d.friction_feedforward_gain > 1.0 {
             // Above the modelled friction the feedforward drives the rod
             // ahead of its reference at every start.
             return Err(ParamError { field: "control.drive_train.friction_feedforward_gain", reason: "must be <= 1" });
         }
-        positive("control.rates.pwm_frequency_hz", self.rates.pwm_frequency_hz)?;
-        nonzero("control.rates.speed_loop_divider", self.rates.speed_loop_divider)?;
-        nonzero("control.rates.position_loop_divider", self.rates.position_loop_divider)?;
+        check!(positive("control.rates.pwm_frequency_hz", self.rates.pwm_frequency_hz));
+        check!(nonzero("control.rates.speed_loop_divider", self.rates.speed_loop_divider));
+        check!(nonzero("control.rates.position_loop_divider", self.rates.position_loop_divider));
         if !self.rates.position_loop_divider.is_multiple_of(self.rates.speed_loop_divider) {
             return Err(ParamError {
                 field: "control.rates.position_loop_divider",
                 reason: "must be a multiple of speed_loop_divider",
             });
         }
-        positive("control.current_pi.kp", self.current_pi.kp)?;
-        non_negative("control.current_pi.ki", self.current_pi.ki)?;
-        positive("control.speed_pi.kp", self.speed_pi.kp)?;
-        non_negative("control.speed_pi.ki", self.speed_pi.ki)?;
-        non_negative("control.torque_filter_hz", self.torque_filter_hz)?;
-        positive("control.position_kp_per_s", self.position_kp_per_s)?;
+        check!(positive("control.current_pi.kp", self.current_pi.kp));
+        check!(non_negative("control.current_pi.ki", self.current_pi.ki));
+        check!(positive("control.speed_pi.kp", self.speed_pi.kp));
+        check!(non_negative("control.speed_pi.ki", self.speed_pi.ki));
+        check!(non_negative("control.torque_filter_hz", self.torque_filter_hz));
+        check!(positive("control.position_kp_per_s", self.position_kp_per_s));
         let e = &self.encoder;
-        nonzero("control.encoder.counts_per_rev", e.counts_per_rev)?;
+        check!(nonzero("control.encoder.counts_per_rev", e.counts_per_rev));
         if e.counts_per_rev > 32_768 {
             // The core unwraps a 16-bit counter: one revolution must fit in half its range.
             return Err(ParamError { field: "control.encoder.counts_per_rev", reason: "must be <= 32768" });
@@ -591,96 +620,96 @@ impl ControlParams {
         if !e.electrical_offset_rad.is_finite() {
             return Err(ParamError { field: "control.encoder.electrical_offset_rad", reason: "must be finite" });
         }
-        positive("control.encoder.pll_kp_per_s", e.pll_kp_per_s)?;
-        positive("control.encoder.pll_ki_per_s2", e.pll_ki_per_s2)?;
+        check!(positive("control.encoder.pll_kp_per_s", e.pll_kp_per_s));
+        check!(positive("control.encoder.pll_ki_per_s2", e.pll_ki_per_s2));
         let t = &self.trajectory;
-        positive("control.trajectory.max_velocity_m_s", t.max_velocity_m_s)?;
-        positive("control.trajectory.max_acceleration_m_s2", t.max_acceleration_m_s2)?;
-        positive("control.trajectory.max_jerk_m_s3", t.max_jerk_m_s3)?;
+        check!(positive("control.trajectory.max_velocity_m_s", t.max_velocity_m_s));
+        check!(positive("control.trajectory.max_acceleration_m_s2", t.max_acceleration_m_s2));
+        check!(positive("control.trajectory.max_jerk_m_s3", t.max_jerk_m_s3));
         let l = &self.limits;
-        positive("control.limits.current_max_a", l.current_max_a)?;
-        positive("control.limits.copper_power_max_w", l.copper_power_max_w)?;
-        positive("control.limits.speed_max_rad_s", l.speed_max_rad_s)?;
-        non_negative("control.limits.stroke_min_m", l.stroke_min_m)?;
-        positive("control.limits.stroke_max_m", l.stroke_max_m)?;
+        check!(positive("control.limits.current_max_a", l.current_max_a));
+        check!(positive("control.limits.copper_power_max_w", l.copper_power_max_w));
+        check!(positive("control.limits.speed_max_rad_s", l.speed_max_rad_s));
+        check!(non_negative("control.limits.stroke_min_m", l.stroke_min_m));
+        check!(positive("control.limits.stroke_max_m", l.stroke_max_m));
         if l.stroke_max_m <= l.stroke_min_m {
             return Err(ParamError { field: "control.limits.stroke_max_m", reason: "must exceed stroke_min_m" });
         }
-        positive("control.limits.max_modulation", l.max_modulation)?;
+        check!(positive("control.limits.max_modulation", l.max_modulation));
         if l.max_modulation > 1.0 {
             return Err(ParamError { field: "control.limits.max_modulation", reason: "must be <= 1" });
         }
         let f = &self.faults;
-        positive("control.faults.overcurrent_trip_a", f.overcurrent_trip_a)?;
+        check!(positive("control.faults.overcurrent_trip_a", f.overcurrent_trip_a));
         if f.overcurrent_trip_a < l.current_max_a {
             return Err(ParamError {
                 field: "control.faults.overcurrent_trip_a",
                 reason: "must be >= limits.current_max_a, or normal operation trips",
             });
         }
-        positive("control.faults.bus_overvoltage_v", f.bus_overvoltage_v)?;
-        positive("control.faults.bus_undervoltage_v", f.bus_undervoltage_v)?;
+        check!(positive("control.faults.bus_overvoltage_v", f.bus_overvoltage_v));
+        check!(positive("control.faults.bus_undervoltage_v", f.bus_undervoltage_v));
         if f.bus_overvoltage_v <= f.bus_undervoltage_v {
             return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "must exceed bus_undervoltage_v" });
         }
-        nonzero("control.faults.encoder_max_step_counts", f.encoder_max_step_counts)?;
-        positive("control.faults.encoder_max_innovation_counts", f.encoder_max_innovation_counts)?;
-        positive("control.faults.position_following_error_m", f.position_following_error_m)?;
-        non_negative("control.faults.stroke_overtravel_m", f.stroke_overtravel_m)?;
-        positive("control.load_estimate.filter_hz", self.load_estimate.filter_hz)?;
-        positive("control.alignment.current_a", self.alignment.current_a)?;
+        check!(nonzero("control.faults.encoder_max_step_counts", f.encoder_max_step_counts));
+        check!(positive("control.faults.encoder_max_innovation_counts", f.encoder_max_innovation_counts));
+        check!(positive("control.faults.position_following_error_m", f.position_following_error_m));
+        check!(non_negative("control.faults.stroke_overtravel_m", f.stroke_overtravel_m));
+        check!(positive("control.load_estimate.filter_hz", self.load_estimate.filter_hz));
+        check!(positive("control.alignment.current_a", self.alignment.current_a));
         if self.alignment.current_a > l.current_max_a {
             return Err(ParamError { field: "control.alignment.current_a", reason: "must be <= limits.current_max_a" });
         }
-        positive("control.alignment.duration_s", self.alignment.duration_s)?;
-        positive("control.faults.speed_following_error_rad_s", f.speed_following_error_rad_s)?;
-        positive("control.faults.speed_following_time_s", f.speed_following_time_s)?;
-        positive("control.faults.encoder_lost_speed_rad_s", f.encoder_lost_speed_rad_s)?;
-        positive("control.faults.encoder_lost_time_s", f.encoder_lost_time_s)?;
-        non_negative("control.faults.stroke_soft_margin_m", f.stroke_soft_margin_m)?;
+        check!(positive("control.alignment.duration_s", self.alignment.duration_s));
+        check!(positive("control.faults.speed_following_error_rad_s", f.speed_following_error_rad_s));
+        check!(positive("control.faults.speed_following_time_s", f.speed_following_time_s));
+        check!(positive("control.faults.encoder_lost_speed_rad_s", f.encoder_lost_speed_rad_s));
+        check!(positive("control.faults.encoder_lost_time_s", f.encoder_lost_time_s));
+        check!(non_negative("control.faults.stroke_soft_margin_m", f.stroke_soft_margin_m));
         if f.stroke_soft_margin_m >= f.stroke_overtravel_m {
             return Err(ParamError {
                 field: "control.faults.stroke_soft_margin_m",
                 reason: "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
             });
         }
-        positive("control.faults.stop_deceleration_m_s2", f.stop_deceleration_m_s2)?;
+        check!(positive("control.faults.stop_deceleration_m_s2", f.stop_deceleration_m_s2));
         if f.stop_deceleration_m_s2 < self.trajectory.max_acceleration_m_s2 {
             return Err(ParamError {
                 field: "control.faults.stop_deceleration_m_s2",
                 reason: "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
             });
         }
-        positive("control.faults.observer_shift_max_m", f.observer_shift_max_m)?;
-        positive("control.faults.current_sum_max_a", f.current_sum_max_a)?;
-        nonzero("control.faults.current_sum_periods", f.current_sum_periods)?;
-        positive("control.faults.stop_following_error_m", f.stop_following_error_m)?;
-        positive("control.faults.open_phase_window_s", f.open_phase_window_s)?;
-        positive("control.faults.open_phase_current_a", f.open_phase_current_a)?;
-        positive("control.faults.open_phase_ratio", f.open_phase_ratio)?;
+        check!(positive("control.faults.observer_shift_max_m", f.observer_shift_max_m));
+        check!(positive("control.faults.current_sum_max_a", f.current_sum_max_a));
+        check!(nonzero("control.faults.current_sum_periods", f.current_sum_periods));
+        check!(positive("control.faults.stop_following_error_m", f.stop_following_error_m));
+        check!(positive("control.faults.open_phase_window_s", f.open_phase_window_s));
+        check!(positive("control.faults.open_phase_current_a", f.open_phase_current_a));
+        check!(positive("control.faults.open_phase_ratio", f.open_phase_ratio));
         if f.open_phase_ratio >= 1.0 {
             return Err(ParamError { field: "control.faults.open_phase_ratio", reason: "must be < 1" });
         }
         let b = &self.brake;
-        non_negative("control.brake.release_time_s", b.release_time_s)?;
-        non_negative("control.brake.engage_time_s", b.engage_time_s)?;
-        non_negative("control.brake.holding_torque_n_m", b.holding_torque_n_m)?;
+        check!(non_negative("control.brake.release_time_s", b.release_time_s));
+        check!(non_negative("control.brake.engage_time_s", b.engage_time_s));
+        check!(non_negative("control.brake.holding_torque_n_m", b.holding_torque_n_m));
         let c = &self.compensation;
-        positive("control.compensation.shift_max_m", c.shift_max_m)?;
+        check!(positive("control.compensation.shift_max_m", c.shift_max_m));
         if c.shift_max_m > f.observer_shift_max_m {
             return Err(ParamError {
                 field: "control.compensation.shift_max_m",
                 reason: "must be <= faults.observer_shift_max_m",
             });
         }
-        positive("control.compensation.shift_rate_max_m_s", c.shift_rate_max_m_s)?;
+        check!(positive("control.compensation.shift_rate_max_m_s", c.shift_rate_max_m_s));
         let th = &self.thermal;
-        positive("control.thermal.continuous_current_a", th.continuous_current_a)?;
+        check!(positive("control.thermal.continuous_current_a", th.continuous_current_a));
         if th.continuous_current_a > l.current_max_a {
             return Err(ParamError { field: "control.thermal.continuous_current_a", reason: "must be <= limits.current_max_a" });
         }
-        positive("control.thermal.time_constant_s", th.time_constant_s)?;
-        positive("control.thermal.foldback_start", th.foldback_start)?;
+        check!(positive("control.thermal.time_constant_s", th.time_constant_s));
+        check!(positive("control.thermal.foldback_start", th.foldback_start));
         if th.foldback_start >= 1.0 {
             return Err(ParamError { field: "control.thermal.foldback_start", reason: "must be < 1" });
         }
@@ -688,10 +717,10 @@ impl ControlParams {
             return Err(ParamError { field: "control.thermal.trip_level", reason: "must be finite and > 1" });
         }
         let r = &self.ratings;
-        positive("control.ratings.motor_peak_current_a", r.motor_peak_current_a)?;
-        positive("control.ratings.inverter_peak_current_a", r.inverter_peak_current_a)?;
-        positive("control.ratings.bus_max_voltage_v", r.bus_max_voltage_v)?;
-        positive("control.ratings.speed_max_rad_s", r.speed_max_rad_s)?;
+        check!(positive("control.ratings.motor_peak_current_a", r.motor_peak_current_a));
+        check!(positive("control.ratings.inverter_peak_current_a", r.inverter_peak_current_a));
+        check!(positive("control.ratings.bus_max_voltage_v", r.bus_max_voltage_v));
+        check!(positive("control.ratings.speed_max_rad_s", r.speed_max_rad_s));
         if l.current_max_a > r.motor_peak_current_a || l.current_max_a > r.inverter_peak_current_a {
             return Err(ParamError {
                 field: "control.limits.current_max_a",

@@ -188,24 +188,23 @@ pub struct BoardLimitsApplied {
 }
 
 /// Lowers (never raises) the limits of `params` to what this power stage
-/// survives. A parameter set made for a higher bus than the board's may
-/// become invalid (undervoltage above overvoltage); the controller then
-/// reports `invalid_params` and never enables, which is the point.
-pub fn apply_board_limits(params: &mut ControlParams) -> BoardLimitsApplied {
+/// survives, and says what it lowered. `const`, so the firmware's set is
+/// lowered and then validated at compile time: a set made for a higher bus
+/// than the board's may become invalid (undervoltage above overvoltage), and
+/// the build then fails naming the field.
+pub const fn apply_board_limits(params: ControlParams) -> (ControlParams, BoardLimitsApplied) {
     // NaN counts as "above": it is replaced by the board's rating.
-    fn lower(value: &mut f32, max: f32) -> Option<f32> {
-        if *value > max || value.is_nan() {
-            *value = max;
-            Some(max)
-        } else {
-            None
-        }
+    const fn lower(value: f32, max: f32) -> (f32, Option<f32>) {
+        if value > max || value.is_nan() { (max, Some(max)) } else { (value, None) }
     }
-    BoardLimitsApplied {
-        bus_overvoltage_v: lower(&mut params.faults.bus_overvoltage_v, cal::BOARD_MAX_BUS_V),
-        current_max_a: lower(&mut params.limits.current_max_a, cal::BOARD_MAX_CURRENT_A),
-        overcurrent_trip_a: lower(&mut params.faults.overcurrent_trip_a, cal::HW_OCP_TRIP_A),
-    }
+    let mut p = params;
+    let (bus_ov, bus_overvoltage_v) = lower(p.faults.bus_overvoltage_v, cal::BOARD_MAX_BUS_V);
+    let (i_max, current_max_a) = lower(p.limits.current_max_a, cal::BOARD_MAX_CURRENT_A);
+    let (ocp, overcurrent_trip_a) = lower(p.faults.overcurrent_trip_a, cal::HW_OCP_TRIP_A);
+    p.faults.bus_overvoltage_v = bus_ov;
+    p.limits.current_max_a = i_max;
+    p.faults.overcurrent_trip_a = ocp;
+    (p, BoardLimitsApplied { bus_overvoltage_v, current_max_a, overcurrent_trip_a })
 }
 
 /// Why the board could not be brought up. The bridge stays off in every case.
@@ -341,7 +340,10 @@ impl Board {
 
         let arr = pwm_auto_reload(tim_hz, pwm_frequency_hz)?;
         let dtg = dead_time_dtg(DEAD_TIME_NS, tim_hz).ok_or(BoardError::DeadTime)?;
-        let period_cycles = (2 * arr as u64 * hclk_hz as u64 / tim_hz as u64) as u32;
+        // The timer clock is HCLK over a whole APB ratio (1, 2, ...): the
+        // CPU cycles per PWM period need no 64-bit division (that alone
+        // would link 0.9 KB of runtime).
+        let period_cycles = 2 * u32::from(arr) * (hclk_hz / tim_hz).max(1);
 
         // --- Analog pins: shunt inputs, gain pins, amplifier outputs, VBUS, NTC.
         let mut analog = [

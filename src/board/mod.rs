@@ -11,7 +11,7 @@
 //! Add `src/board/<name>.rs` with the same public surface as
 //! [`b_g431b_esc1`]:
 //!
-//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()`;
+//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()` (a `const fn`);
 //! - `Board::new(peripherals, pwm_frequency_hz) -> Result<Board, BoardError>`;
 //! - an implementation of [`ServoBoard`] for `Board`;
 //! - the ADC end-of-injected-sequence interrupt handler that calls
@@ -32,19 +32,30 @@ pub mod watchdog;
 /// The board this image is built for.
 pub use b_g431b_esc1 as active;
 
-/// Lowers `params` (normally `active::PARAMS`) to the board's ratings —
-/// what was lowered is logged, never silent — and brings the board up for
-/// them. The firmware and the on-board tests both start here, so they run
-/// the same configuration.
-pub fn bring_up(
-    p: embassy_stm32::Peripherals,
-    params: &mut servo_core::ControlParams,
-) -> Result<active::Board, active::BoardError> {
-    let lowered = active::apply_board_limits(params);
+/// `active::PARAMS` lowered to the board's ratings, and what was lowered.
+pub const BOARD_PARAMS: (servo_core::ControlParams, active::BoardLimitsApplied) =
+    active::apply_board_limits(active::PARAMS);
+
+/// The firmware's parameter set, validated at compile time: an invalid set
+/// (a tuning mistake, or a limit the board lowered below another) fails the
+/// build with the field's name and the reason.
+pub const VALID_PARAMS: servo_core::params::ValidatedParams =
+    match servo_core::params::ValidatedParams::new(BOARD_PARAMS.0) {
+        Ok(v) => v,
+        // A const panic takes one `&str`: the field's name (its rule is in
+        // `ControlParams::validate`, and host-sim's `--params` prints both).
+        Err(e) => panic!("{}", e.field),
+    };
+
+/// Brings the board up for [`VALID_PARAMS`], logging what the board's
+/// ratings lowered (never silent). The firmware and the on-board tests both
+/// start here, so they run the same configuration.
+pub fn bring_up(p: embassy_stm32::Peripherals) -> Result<active::Board, active::BoardError> {
+    let lowered = BOARD_PARAMS.1;
     if lowered != active::BoardLimitsApplied::default() {
         defmt::warn!("parameters lowered to the board's ratings: {}", lowered);
     }
-    active::Board::new(p, params.rates.pwm_frequency_hz)
+    active::Board::new(p, VALID_PARAMS.get().rates.pwm_frequency_hz)
 }
 
 /// The drive. The PWM interrupt steps it every period; the main task sends

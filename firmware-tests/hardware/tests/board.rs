@@ -59,8 +59,8 @@ mod tests {
     fn init() -> State {
         let p = embassy_stm32::init(hw::clock_config());
         enable_cycle_counter();
-        let mut params = hw::PARAMS;
-        let board = match super::board::bring_up(p, &mut params) {
+        let params = *super::board::VALID_PARAMS.get();
+        let board = match super::board::bring_up(p) {
             Ok(b) => b,
             Err(e) => defmt::panic!("board bring-up failed: {}", e),
         };
