@@ -82,6 +82,20 @@ const SPEED_RATE_CAUSES: FaultSet =
 /// drive keeps holding: that beats dropping the load.
 const SAFE_STOP_THEN_BRAKE: FaultSet = FaultSet::OPEN_PHASE;
 
+/// Bridge-off faults after which the low-side switches must not be closed:
+/// the current can no longer be measured or bounded (overcurrent, a sensor,
+/// a NaN sample, the hardware break already acted), or the core's timing is
+/// not trusted (overrun, watchdog), or nothing was ever set up (parameters).
+const NO_SHORT_CIRCUIT: FaultSet = FaultSet(
+    FaultSet::OVERCURRENT.0
+        | FaultSet::CURRENT_SENSOR.0
+        | FaultSet::NON_FINITE_INPUT.0
+        | FaultSet::BRIDGE_BREAK.0
+        | FaultSet::ISR_OVERRUN.0
+        | FaultSet::WATCHDOG_RESET.0
+        | FaultSet::INVALID_PARAMS.0,
+);
+
 /// Conditions evaluated at the position-loop rate.
 const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
 
@@ -181,6 +195,8 @@ pub struct Controller {
     /// The open-phase check's last verdict (it keeps it through windows
     /// that cannot judge).
     open_phase_present: bool,
+    /// Periods of active short circuit left after a bridge-off fault.
+    short_circuit_periods: u32,
     /// PWM periods since the brake was told to open (Running, Stopping) or
     /// to close (Braking, once the stop ramp is at rest).
     brake_periods: u32,
@@ -257,6 +273,7 @@ impl Controller {
             open_phase: OpenPhaseMonitor::new(),
             open_phase_present: false,
             brake_periods: 0,
+            short_circuit_periods: 0,
             bus_voltage_v: 0.0,
             terminal_position_m: None,
             telemetry: Telemetry::default(),
@@ -331,6 +348,14 @@ impl Controller {
         }
         self.faults.insert(new);
         if !self.faults.only_controlled_stop() {
+            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking);
+            // Short-circuit braking bridges the brake's engage time, where
+            // the fault leaves the power stage and the supply trustworthy.
+            self.short_circuit_periods = if driving && self.params.brake.fitted && self.faults.intersection(NO_SHORT_CIRCUIT).is_empty() {
+                self.derived.brake_engage_periods
+            } else {
+                0
+            };
             self.mode = Mode::Fault;
             return;
         }
@@ -573,6 +598,7 @@ impl Controller {
         self.raise(present.difference(FaultSet::INVALID_PARAMS));
 
         let mut out = match self.mode {
+            Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
             Mode::Disabled | Mode::Fault => self.bridge_off(),
             Mode::Aligning => self.align_period(s),
             Mode::Running | Mode::Stopping => {
@@ -616,6 +642,26 @@ impl Controller {
             self.cut_telemetry();
         }
         out
+    }
+
+    /// Active short circuit (all low-side switches on) while the brake closes
+    /// after a bridge-off fault: the motor brakes itself through its winding
+    /// resistance, no sensor or loop needed, so a vertical load sinks at a
+    /// few mm/s instead of falling. Bounded: above `limits.current_max_a`
+    /// in any phase (high speed: the short-circuit current tends to ψ/L) it
+    /// opens all switches for good.
+    fn short_circuit(&mut self, s: &SensorSample) -> PwmCommand {
+        self.short_circuit_periods = self.short_circuit_periods.saturating_sub(1);
+        let limit = self.params.limits.current_max_a;
+        let [a, b, c] = s.phase_current_a;
+        // NaN compares false: `!(x <= limit)` ends the short circuit too.
+        let bounded = a.abs() <= limit && b.abs() <= limit && c.abs() <= limit;
+        let off = self.bridge_off();
+        if !bounded {
+            self.short_circuit_periods = 0;
+            return off;
+        }
+        PwmCommand { duty: [0.0; 3], enable: true, brake_release: false }
     }
 
     /// Bridge off: loops reset, the command follows the rod.

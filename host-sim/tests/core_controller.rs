@@ -79,8 +79,21 @@ fn overcurrent_and_bus_faults_latch() {
         let mut c = Controller::new(p);
         c.command(Command::Enable).unwrap();
         c.step(&nominal());
-        assert!(!c.step(&sample).enable, "{fault:?}");
+        let out = c.step(&sample);
         assert!(c.faults().contains(fault));
+        if fault == FaultSet::OVERCURRENT {
+            assert!(!out.enable, "{fault:?}: all switches must open");
+        } else {
+            // The bus faults short the winding (all low sides on) while the
+            // brake closes, then open everything.
+            assert!(out.enable && out.duty == [0.0; 3], "{fault:?}: {out:?}");
+            assert!(!out.brake_release, "{fault:?}: brake not applied");
+        }
+        let engage_periods = (p.brake.engage_time_s * p.rates.pwm_frequency_hz).ceil() as usize;
+        for _ in 0..engage_periods {
+            c.step(&sample);
+        }
+        assert!(!c.step(&sample).enable, "{fault:?}: still switching after the brake closed");
     }
 }
 

@@ -144,14 +144,24 @@ fn check_sequence(start_count: u16, periods: &[Period], all_finite: bool) -> Res
         }
         let mode = c.mode();
         let faults = c.faults();
-        if matches!(mode, Mode::Fault | Mode::Disabled) {
+        // After a bridge-off fault the only switching allowed is the short
+        // circuit that brakes the motor while the holding brake closes.
+        let short_circuit = out.enable && out.duty == [0.0; 3] && !out.brake_release;
+        if mode == Mode::Disabled {
             prop_assert!(!out.enable, "period {k}: bridge on in {mode:?}");
         }
+        if mode == Mode::Fault {
+            prop_assert!(!out.enable || short_circuit, "period {k}: bridge driving in {mode:?}: {out:?}");
+            prop_assert!(!out.brake_release, "period {k}: brake open in {mode:?}");
+        }
         if !faults.is_empty() {
-            prop_assert!(matches!(mode, Mode::Fault | Mode::Stopping), "period {k}: faults {faults:?} in {mode:?}");
+            prop_assert!(
+                matches!(mode, Mode::Fault | Mode::Stopping | Mode::Braking),
+                "period {k}: faults {faults:?} in {mode:?}"
+            );
         }
         if faults.difference(FaultSet::CONTROLLED_STOP).0 != 0 {
-            prop_assert!(!out.enable, "period {k}: bridge on with {faults:?}");
+            prop_assert!(!out.enable || short_circuit, "period {k}: bridge driving with {faults:?}");
         }
         let sample_finite = per.currents.iter().all(|x| x.is_finite())
             && per.bus_v.is_finite()

@@ -162,3 +162,35 @@ fn open_phase_monitor_judges_only_windows_with_enough_demand() {
     }
     assert_eq!(verdict, None);
 }
+
+/// A bridge-off fault while holding the vertical rated load: until the brake
+/// closes (25 ms) the rod is free. Where the power stage is trusted (a bus
+/// sag) the drive shorts the winding meanwhile and the load sinks at the
+/// short-circuit speed (≈12 mm/s, closed form in fault_power.rs): a few
+/// tenths of a millimetre. Where it is not (a NaN current sample: nothing
+/// bounds the current) all switches open and the load falls ≈3 mm.
+#[test]
+fn short_circuit_braking_bridges_the_brake_engage_time() {
+    let rig = RigConfig::nominal().unwrap();
+    let drop_after = |inject: &dyn Fn(&mut servo_core::SensorSample)| {
+        let mut cl = holding_at_250_mm(&rig);
+        let x0 = cl.plant.state().x_rod_m;
+        let mut min_x = x0;
+        for k in 0..seconds(&cl, 0.3) {
+            if k < 3 {
+                cl.step_with(inject);
+            } else {
+                cl.step();
+            }
+            min_x = min_x.min(cl.plant.state().x_rod_m);
+        }
+        assert_eq!(cl.controller.mode(), Mode::Fault);
+        assert!(cl.plant.state().brake_engaged);
+        x0 - min_x
+    };
+    let with_short = drop_after(&|s| s.bus_voltage_v = 30.0);
+    let without = drop_after(&|s| s.phase_current_a[0] = f32::NAN);
+    println!("drop while the brake closes: {:.3} mm shorted, {:.3} mm open", with_short * 1e3, without * 1e3);
+    assert!(with_short < 0.6e-3, "drop with short-circuit braking {with_short} m");
+    assert!(without > 2.0e-3, "drop with all switches open {without} m");
+}

@@ -157,6 +157,7 @@ fn write_trace(o: &Outcome, path: &Path) -> Result<()> {
         "faults",
         "mode",
         "bridge_on",
+        "short_circuit",
     ])?;
     for r in o.records.iter().step_by(4) {
         w.write_record([
@@ -168,6 +169,7 @@ fn write_trace(o: &Outcome, path: &Path) -> Result<()> {
             r.faults.bits().to_string(),
             format!("{:?}", r.mode),
             r.bridge_on.to_string(),
+            r.short_circuit.to_string(),
         ])?;
     }
     w.flush()?;

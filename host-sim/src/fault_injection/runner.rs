@@ -117,8 +117,12 @@ pub struct PeriodRecord {
     /// Latched after this period's step.
     pub faults: FaultSet,
     pub mode: Mode,
-    /// The bridge was switching during this period (the plant's truth).
+    /// The bridge was driving the motor during this period (the plant's
+    /// truth): switching, other than the short circuit below.
     pub bridge_on: bool,
+    /// All three low sides on (active short circuit after a bridge-off
+    /// fault, while the brake closes): braking, not driving.
+    pub short_circuit: bool,
 }
 
 /// A command and what the drive answered.
@@ -524,7 +528,8 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
             out.reaction = Some(mode);
             latch_position = Some(state.motor_side_position_m);
         }
-        let bridge_on = state.inverter_enabled;
+        let short_circuit = matches!(cl.plant.drive(), crate::plant::Drive::Pwm(d) if d == [0.0; 3]);
+        let bridge_on = state.inverter_enabled && !short_circuit;
         if out.latch_period.is_some() && out.bridge_off_period.is_none() && !bridge_on {
             out.bridge_off_period = Some(n);
         }
@@ -556,6 +561,7 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
             faults,
             mode,
             bridge_on,
+            short_circuit,
         });
     }
     let state = cl.plant.state();
