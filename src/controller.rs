@@ -113,6 +113,9 @@ struct Derived {
     open_phase_window_ticks: u32,
     brake_release_periods: u32,
     brake_engage_periods: u32,
+    /// Rotor speed below which an active short circuit's steady current,
+    /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
+    short_circuit_speed_max_rad_s: f32,
 }
 
 impl Derived {
@@ -129,8 +132,22 @@ impl Derived {
             open_phase_window_ticks: periods(p.faults.open_phase_window_s, p.speed_period_s()),
             brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
             brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
+            short_circuit_speed_max_rad_s: short_circuit_speed_max_rad_s(p),
         }
     }
+}
+
+/// Solves `ω_e ψ / sqrt(R² + (ω_e L)²) = I_max` for the mechanical speed;
+/// infinite when even the asymptote ψ/L stays below `I_max`.
+fn short_circuit_speed_max_rad_s(p: &ControlParams) -> f32 {
+    let m = &p.motor;
+    let i = p.limits.current_max_a;
+    let l = m.inductance_q_h;
+    let margin = m.flux_linkage_wb * m.flux_linkage_wb - i * i * l * l;
+    if margin <= 0.0 {
+        return f32::INFINITY;
+    }
+    i * m.phase_resistance_ohm / crate::math::sqrt(margin) / m.pole_pairs as f32
 }
 
 /// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
@@ -348,7 +365,8 @@ impl Controller {
         }
         self.faults.insert(new);
         if !self.faults.only_controlled_stop() {
-            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking);
+            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking)
+                && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
             // Short-circuit braking bridges the brake's engage time, where
             // the fault leaves the power stage and the supply trustworthy.
             self.short_circuit_periods = if driving && self.params.brake.fitted && self.faults.intersection(NO_SHORT_CIRCUIT).is_empty() {
@@ -647,9 +665,10 @@ impl Controller {
     /// Active short circuit (all low-side switches on) while the brake closes
     /// after a bridge-off fault: the motor brakes itself through its winding
     /// resistance, no sensor or loop needed, so a vertical load sinks at a
-    /// few mm/s instead of falling. Bounded: above `limits.current_max_a`
-    /// in any phase (high speed: the short-circuit current tends to ψ/L) it
-    /// opens all switches for good.
+    /// few mm/s instead of falling. Only entered below the speed whose
+    /// short-circuit current stays inside `limits.current_max_a` (≈89 rad/s,
+    /// 70 mm/s of rod, for the default motor), and still ended for good if a
+    /// phase reads above that limit.
     fn short_circuit(&mut self, s: &SensorSample) -> PwmCommand {
         self.short_circuit_periods = self.short_circuit_periods.saturating_sub(1);
         let limit = self.params.limits.current_max_a;
