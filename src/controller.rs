@@ -389,6 +389,9 @@ impl Controller {
     fn begin_stop(&mut self) {
         let v = self.speed_rad_s() * self.params.metres_per_rad();
         self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
+        // The stop's path starts here: following checks before the next
+        // position period must not judge it by the command it replaced.
+        self.position_command_m = self.motor_position_m();
         self.position_shift_m = 0.0;
         self.external_shift_applied_m = 0.0;
         self.compensator.set_enabled(false);
