@@ -85,6 +85,9 @@ struct Derived {
     current_limit_a: f32,
     metres_per_count: f32,
     rad_per_count: f32,
+    /// `pole_pairs · 2π / counts_per_rev`: counts straight to electrical
+    /// radians, one multiply per period.
+    electrical_rad_per_count: f32,
     pole_pairs: f32,
 }
 
@@ -98,6 +101,7 @@ impl Derived {
             current_limit_a: p.current_limit_a(),
             metres_per_count: p.drive_train.screw_lead_m / cpr,
             rad_per_count: 2.0 * PI / cpr,
+            electrical_rad_per_count: p.motor.pole_pairs as f32 * (2.0 * PI / cpr),
             pole_pairs: p.motor.pole_pairs as f32,
         }
     }
@@ -241,7 +245,7 @@ impl Controller {
     }
 
     pub fn speed_rad_s(&self) -> f32 {
-        self.encoder.speed_rad_s(&self.params.encoder)
+        self.encoder.speed_counts_s() * self.derived.rad_per_count
     }
 
     /// True while a planned move has time left.
@@ -424,13 +428,15 @@ impl Controller {
         let f = &self.params.faults;
         let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
         let [a, b, c] = s.phase_current_a;
-        let finite = a.is_finite()
-            && b.is_finite()
-            && c.is_finite()
-            && s.bus_voltage_v.is_finite()
-            && s.terminal_position_m.is_none_or(f32::is_finite)
-            && s.load_cell_force_n.is_none_or(f32::is_finite);
-        if !finite {
+        // x − x is 0 for a finite x and NaN for an infinity or NaN, so one
+        // compare checks every input (a branch each costs more at 20 kHz).
+        let v = s.bus_voltage_v;
+        let optional = |x: Option<f32>| match x {
+            Some(x) => x - x,
+            None => 0.0,
+        };
+        let probe = (a - a) + (b - b) + (c - c) + (v - v) + optional(s.terminal_position_m) + optional(s.load_cell_force_n);
+        if probe != 0.0 {
             present.insert(FaultSet::NON_FINITE_INPUT);
             return present;
         }
@@ -498,7 +504,10 @@ impl Controller {
             self.present.intersection(POSITION_RATE_CAUSES)
         });
         self.present = present;
-        self.raise(present.difference(FaultSet::INVALID_PARAMS));
+        let raised = present.difference(FaultSet::INVALID_PARAMS);
+        if !raised.difference(self.faults).is_empty() {
+            self.raise(raised);
+        }
 
         let out = match self.mode {
             Mode::Disabled | Mode::Fault => {
@@ -583,10 +592,13 @@ impl Controller {
     }
 
     fn rotor_state(&self) -> RotorState {
-        let theta_m = self.encoder.angle_in_rev_rad(&self.params.encoder);
+        let k = self.derived.electrical_rad_per_count;
         RotorState {
-            electrical_angle_rad: wrap_pi(self.derived.pole_pairs * theta_m + self.params.encoder.electrical_offset_rad),
-            electrical_speed_rad_s: self.derived.pole_pairs * self.speed_rad_s(),
+            // Not wrapped: within [offset, offset + 2π·pole_pairs), which
+            // `sincos` reduces as accurately as a wrapped angle.
+            electrical_angle_rad: self.encoder.counts_in_rev(&self.params.encoder) * k
+                + self.params.encoder.electrical_offset_rad,
+            electrical_speed_rad_s: self.encoder.speed_counts_s() * k,
         }
     }
 

@@ -80,17 +80,32 @@ pub fn sincos(x: f32) -> (f32, f32) {
     const DP1: f32 = 1.570_312_5;
     const DP2: f32 = 4.837_513e-4;
     const DP3: f32 = 7.549_79e-8;
-    let n = round(x * core::f32::consts::FRAC_2_PI);
+    let (n, quadrant) = round_to_int(x * core::f32::consts::FRAC_2_PI);
     let r = ((x - n * DP1) - n * DP2) - n * DP3;
     let z = r * r;
     let s = ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1) * z * r + r;
     let c = ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
-    match (n as i32) & 3 {
+    match quadrant & 3 {
         0 => (s, c),
         1 => (c, -s),
         2 => (-s, -c),
         _ => (-c, s),
     }
+}
+
+/// `1.5 · 2²³`: adding it to an `f32` of magnitude below 2²² leaves no
+/// fraction bits, so the FPU's own rounding (to nearest, ties to even)
+/// rounds to an integer, which sits in the low mantissa bits.
+const ROUND_MAGIC: f32 = 12_582_912.0;
+
+/// `x` rounded to the nearest integer (ties to even), as an `f32` and as
+/// the low bits of an integer (two's complement, exact for |x| < 2²²): two
+/// additions instead of a conversion, a compare and a correction. Outside
+/// that range the results are some integer, never a panic.
+#[inline(always)]
+fn round_to_int(x: f32) -> (f32, u32) {
+    let shifted = x + ROUND_MAGIC;
+    (shifted - ROUND_MAGIC, shifted.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()))
 }
 
 /// Tangent through `sincos` (filter design at start-up, not the hot path).

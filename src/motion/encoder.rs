@@ -37,6 +37,7 @@ impl EncoderTracker {
     /// the observer predicted it: a tighter test than the step bound, since
     /// the prediction already carries the speed (a type-2 loop lags a
     /// constant acceleration α by α/ki counts: ≈30 at the rotor's peak).
+    #[inline]
     pub fn update(&mut self, p: &EncoderParams, raw: u16, dt_s: f32, max_step_counts: u32, max_innovation_counts: f32) -> EncoderUpdate {
         if !self.started {
             self.started = true;
@@ -76,12 +77,23 @@ impl EncoderTracker {
         self.est_base as f32 + self.est_frac
     }
 
+    /// Estimated position within one revolution, counts in [0, counts_per_rev).
+    #[inline]
+    pub fn counts_in_rev(&self, p: &EncoderParams) -> f32 {
+        let cpr = p.counts_per_rev as i32;
+        // counts_per_rev ≥ 1 by validation; 0 would give 0, not a panic.
+        self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac
+    }
+
     /// Estimated mechanical angle within one revolution, radians in [0, 2π).
     pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
-        let cpr = p.counts_per_rev as i32;
-        // counts_per_rev ≥ 1 by validation; 0 would give angle 0, not a panic.
-        let in_rev = self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac;
-        in_rev * (2.0 * PI / p.counts_per_rev as f32)
+        self.counts_in_rev(p) * (2.0 * PI / p.counts_per_rev as f32)
+    }
+
+    /// Estimated speed, counts per second.
+    #[inline]
+    pub fn speed_counts_s(&self) -> f32 {
+        self.speed_counts_s
     }
 
     /// Estimated mechanical speed, rad/s.
