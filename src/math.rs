@@ -77,6 +77,12 @@ pub fn sqrt(x: f32) -> f32 {
 /// π/2 (Cody–Waite; the first part has few bits so `n·part` is exact), then
 /// the Cephes minimax polynomials on [−π/4, π/4]. Error ≈ 1e-7 absolute.
 pub fn sincos(x: f32) -> (f32, f32) {
+    sincos_inline(x)
+}
+
+/// [`sincos`] for the current loop's one call per period, inlined there.
+#[inline(always)]
+pub(crate) fn sincos_inline(x: f32) -> (f32, f32) {
     const DP1: f32 = 1.570_312_5;
     const DP2: f32 = 4.837_513e-4;
     const DP3: f32 = 7.549_79e-8;
@@ -96,14 +102,14 @@ pub fn sincos(x: f32) -> (f32, f32) {
 /// `1.5 · 2²³`: adding it to an `f32` of magnitude below 2²² leaves no
 /// fraction bits, so the FPU's own rounding (to nearest, ties to even)
 /// rounds to an integer, which sits in the low mantissa bits.
-const ROUND_MAGIC: f32 = 12_582_912.0;
+pub(crate) const ROUND_MAGIC: f32 = 12_582_912.0;
 
 /// `x` rounded to the nearest integer (ties to even), as an `f32` and as
 /// the low bits of an integer (two's complement, exact for |x| < 2²²): two
 /// additions instead of a conversion, a compare and a correction. Outside
 /// that range the results are some integer, never a panic.
 #[inline(always)]
-fn round_to_int(x: f32) -> (f32, u32) {
+pub(crate) fn round_to_int(x: f32) -> (f32, u32) {
     let shifted = x + ROUND_MAGIC;
     (shifted - ROUND_MAGIC, shifted.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()))
 }

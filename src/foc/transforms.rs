@@ -27,8 +27,9 @@ pub struct SinCos {
 }
 
 impl SinCos {
+    #[inline(always)]
     pub fn of(angle_rad: f32) -> Self {
-        let (sin, cos) = crate::math::sincos(angle_rad);
+        let (sin, cos) = crate::math::sincos_inline(angle_rad);
         Self { sin, cos }
     }
 
@@ -46,7 +47,8 @@ impl SinCos {
             let cos = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0));
             Self { sin, cos }
         } else {
-            Self::of(delta_rad)
+            let (sin, cos) = crate::math::sincos(delta_rad);
+            Self { sin, cos }
         };
         Self { sin: self.sin * r.cos + self.cos * r.sin, cos: self.cos * r.cos - self.sin * r.sin }
     }

@@ -6,7 +6,7 @@ use core::f32::consts::PI;
 
 /// Multi-turn position and speed estimate from raw counter readings.
 ///
-/// The estimate is kept as an integer count plus a fraction in [0, 1) so that
+/// The estimate is kept as an integer count plus a fraction in [−½, ½] so that
 /// integrating tiny speed·dt increments never loses resolution far from zero,
 /// which a single f32 in radians would after a few hundred revolutions.
 #[derive(Clone, Copy, Debug, Default)]
@@ -54,8 +54,10 @@ impl EncoderTracker {
         let implausible_step = step.unsigned_abs() > max_step_counts || !(err.abs() <= max_innovation_counts);
         self.est_frac += p.pll_kp_per_s * err * dt_s;
         self.speed_counts_s += p.pll_ki_per_s2 * err * dt_s;
-        let whole = crate::math::floor(self.est_frac);
-        self.est_base = self.est_base.wrapping_add(whole as i32);
+        // Nearest rather than floor: two additions instead of a conversion,
+        // a compare and a correction, every period.
+        let (whole, whole_counts) = crate::math::round_to_int(self.est_frac);
+        self.est_base = self.est_base.wrapping_add(whole_counts as i32);
         self.est_frac -= whole;
         EncoderUpdate { implausible_step }
     }
@@ -77,7 +79,8 @@ impl EncoderTracker {
         self.est_base as f32 + self.est_frac
     }
 
-    /// Estimated position within one revolution, counts in [0, counts_per_rev).
+    /// Estimated position within one revolution, counts in
+    /// [−½, counts_per_rev − ½).
     #[inline]
     pub fn counts_in_rev(&self, p: &EncoderParams) -> f32 {
         let cpr = p.counts_per_rev as i32;
@@ -85,7 +88,8 @@ impl EncoderTracker {
         self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac
     }
 
-    /// Estimated mechanical angle within one revolution, radians in [0, 2π).
+    /// Estimated mechanical angle within one revolution, radians, within half
+    /// a count of [0, 2π).
     pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
         self.counts_in_rev(p) * (2.0 * PI / p.counts_per_rev as f32)
     }
