@@ -431,11 +431,13 @@ impl Controller {
         // x − x is 0 for a finite x and NaN for an infinity or NaN, so one
         // compare checks every input (a branch each costs more at 20 kHz).
         let v = s.bus_voltage_v;
-        let optional = |x: Option<f32>| match x {
-            Some(x) => x - x,
-            None => 0.0,
-        };
-        let probe = (a - a) + (b - b) + (c - c) + (v - v) + optional(s.terminal_position_m) + optional(s.load_cell_force_n);
+        let mut probe = (a - a) + (b - b) + (c - c) + (v - v);
+        if let Some(x) = s.terminal_position_m {
+            probe += x - x;
+        }
+        if let Some(x) = s.load_cell_force_n {
+            probe += x - x;
+        }
         if probe != 0.0 {
             present.insert(FaultSet::NON_FINITE_INPUT);
             return present;
@@ -598,9 +600,9 @@ impl Controller {
     fn rotor_state(&self) -> RotorState {
         let k = self.derived.electrical_rad_per_count;
         RotorState {
-            // Not wrapped: within [offset, offset + 2π·pole_pairs), which
-            // `sincos` reduces as accurately as a wrapped angle.
-            electrical_angle_rad: self.encoder.counts_in_rev(&self.params.encoder) * k
+            // Not wrapped: within offset ± 2π·pole_pairs, which `sincos`
+            // reduces as accurately as a wrapped angle.
+            electrical_angle_rad: self.encoder.counts_in_turn(&self.params.encoder) * k
                 + self.params.encoder.electrical_offset_rad,
             electrical_speed_rad_s: self.encoder.speed_counts_s() * k,
         }

@@ -73,6 +73,17 @@ pub fn sqrt(x: f32) -> f32 {
     }
 }
 
+/// `sqrt(max(x, 0))` (NaN gives 0), the clamp done on the bit pattern: the
+/// value passes through a core register on its way to `vsqrt` anyway, and
+/// one unsigned compare there replaces a float compare with its flag
+/// transfer and a loaded zero. Every bit pattern above `+∞`'s is a negative
+/// number, −0 or a NaN — exactly the inputs `max(x, 0.0)` maps to 0.
+#[inline(always)]
+pub fn sqrt_non_negative(x: f32) -> f32 {
+    let bits = x.to_bits();
+    sqrt(f32::from_bits(if bits > f32::INFINITY.to_bits() { 0 } else { bits }))
+}
+
 /// Sine and cosine for |x| ≲ 10⁴ rad: quadrant reduction with a three-part
 /// π/2 (Cody–Waite; the first part has few bits so `n·part` is exact), then
 /// the Cephes minimax polynomials on [−π/4, π/4]. Error ≈ 1e-7 absolute.

@@ -63,7 +63,7 @@ impl CurrentLoop {
         // d-axis first: it holds the flux; q gets what is left of the circle.
         let v_max = linear_limit_v(bus_voltage_v) * p.limits.max_modulation;
         let ud = self.pi_d.update(&p.current_pi, reference.d - current.d, ff_d, -v_max, v_max, dt);
-        let uq_max = crate::math::sqrt(crate::math::max(v_max * v_max - ud.value * ud.value, 0.0));
+        let uq_max = crate::math::sqrt_non_negative(v_max * v_max - ud.value * ud.value);
         let uq = self.pi_q.update(&p.current_pi, reference.q - current.q, ff_q, -uq_max, uq_max, dt);
         let voltage_dq = Dq { d: ud.value, q: uq.value };
 

@@ -62,7 +62,7 @@ fn duties(v: AlphaBeta, bus_voltage_v: f32) -> [f32; 3] {
 
 /// On or outside the circle, a bus outside the fast range, or a non-finite
 /// input: every check, and the duties clamped.
-#[inline(never)]
+#[inline(always)]
 fn svpwm_edge(v: AlphaBeta, bus_voltage_v: f32) -> SvpwmOutput {
     // x − x is 0 for a finite x, NaN otherwise.
     let finite = (bus_voltage_v - bus_voltage_v) + (v.alpha - v.alpha) + (v.beta - v.beta) == 0.0;

@@ -88,6 +88,18 @@ impl EncoderTracker {
         self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac
     }
 
+    /// Estimated position within one revolution or the one before it:
+    /// counts in (−counts_per_rev − ½, counts_per_rev − ½), the same angle
+    /// modulo a turn as [`counts_in_rev`](Self::counts_in_rev) — all sin/cos
+    /// need — without the Euclidean correction.
+    #[inline]
+    pub fn counts_in_turn(&self, p: &EncoderParams) -> f32 {
+        // ≤ 32 768 by validation; the mask lets the compiler see it is not −1
+        // (no overflow case to test) without changing any valid value.
+        let cpr = (p.counts_per_rev & 0xFFFF) as i32;
+        self.est_base.checked_rem(cpr).unwrap_or(0) as f32 + self.est_frac
+    }
+
     /// Estimated mechanical angle within one revolution, radians, within half
     /// a count of [0, 2π).
     pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
