@@ -428,15 +428,15 @@ impl Controller {
         let f = &self.params.faults;
         let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
         let [a, b, c] = s.phase_current_a;
-        // x − x is 0 for a finite x and NaN for an infinity or NaN, so one
-        // compare checks every input (a branch each costs more at 20 kHz).
+        // One compare checks every input (a branch each costs more at 20 kHz).
+        use crate::math::finite_probe;
         let v = s.bus_voltage_v;
-        let mut probe = (a - a) + (b - b) + (c - c) + (v - v);
+        let mut probe = finite_probe(a) + finite_probe(b) + finite_probe(c) + finite_probe(v);
         if let Some(x) = s.terminal_position_m {
-            probe += x - x;
+            probe += finite_probe(x);
         }
         if let Some(x) = s.load_cell_force_n {
-            probe += x - x;
+            probe += finite_probe(x);
         }
         if probe != 0.0 {
             present.insert(FaultSet::NON_FINITE_INPUT);

@@ -64,8 +64,8 @@ fn duties(v: AlphaBeta, bus_voltage_v: f32) -> [f32; 3] {
 /// input: every check, and the duties clamped.
 #[inline(always)]
 fn svpwm_edge(v: AlphaBeta, bus_voltage_v: f32) -> SvpwmOutput {
-    // x − x is 0 for a finite x, NaN otherwise.
-    let finite = (bus_voltage_v - bus_voltage_v) + (v.alpha - v.alpha) + (v.beta - v.beta) == 0.0;
+    use crate::math::finite_probe;
+    let finite = finite_probe(bus_voltage_v) + finite_probe(v.alpha) + finite_probe(v.beta) == 0.0;
     if !(finite && bus_voltage_v > 0.0) {
         return SvpwmOutput { duty: [0.5; 3], limited: true };
     }
