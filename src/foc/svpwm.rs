@@ -28,9 +28,10 @@ const FAST_BUS_BITS_SPAN: u32 = 120 << 23;
 /// (|v| within 1.2e-4 of it). There the injected legs lie at most
 /// `0.5·(1 − 2⁻¹³)·V_bus` from the midpoint before rounding, and the few
 /// ulps of rounding in between cannot reach the rails: the duties are in
-/// [0, 1] without clamping. The current loop stays at `max_modulation` ≤ 1
-/// of the circle, so in practice only a request the PI limits did not bound
-/// (or a non-finite one) takes the slow path.
+/// [0, 1] without clamping. The current loop bounds its request to
+/// `max_modulation` of the circle (0.95 by default), inside this range for
+/// any `max_modulation` up to 0.9998; above that, and for any other request,
+/// the checked path gives the same duties, only slower.
 const FAST_CIRCLE_FRACTION: f32 = 1.0 - 1.0 / 4096.0;
 
 /// Turns a voltage vector into three duties in [0, 1].

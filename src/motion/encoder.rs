@@ -80,7 +80,7 @@ impl EncoderTracker {
     }
 
     /// Estimated position within one revolution, counts in
-    /// [−½, counts_per_rev − ½).
+    /// [−½, counts_per_rev − ½].
     #[inline]
     pub fn counts_in_rev(&self, p: &EncoderParams) -> f32 {
         let cpr = p.counts_per_rev as i32;
@@ -89,7 +89,7 @@ impl EncoderTracker {
     }
 
     /// Estimated position within one revolution or the one before it:
-    /// counts in (−counts_per_rev − ½, counts_per_rev − ½), the same angle
+    /// counts in [½ − counts_per_rev, counts_per_rev − ½], the same angle
     /// modulo a turn as [`counts_in_rev`](Self::counts_in_rev) — all sin/cos
     /// need — without the Euclidean correction.
     #[inline]
