@@ -31,6 +31,15 @@ pub fn min(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
+/// 0 for a finite `x`, NaN for an infinity or NaN. A sum of these is 0
+/// exactly when every term is finite: one compare instead of a test and a
+/// branch per value.
+#[inline(always)]
+#[allow(clippy::eq_op)] // x − x is the point: it is 0 only for a finite x
+pub fn finite_probe(x: f32) -> f32 {
+    x - x
+}
+
 /// Largest integer not above `x`, for |x| < 2³¹ (NaN gives 0).
 #[inline(always)]
 pub fn floor(x: f32) -> f32 {
@@ -73,24 +82,56 @@ pub fn sqrt(x: f32) -> f32 {
     }
 }
 
+/// `sqrt(max(x, 0))` (NaN gives 0), the clamp done on the bit pattern: the
+/// value passes through a core register on its way to `vsqrt` anyway, and
+/// one unsigned compare there replaces a float compare with its flag
+/// transfer and a loaded zero. Every bit pattern above `+∞`'s is a negative
+/// number, −0 or a NaN — exactly the inputs `max(x, 0.0)` maps to 0.
+#[inline(always)]
+pub fn sqrt_non_negative(x: f32) -> f32 {
+    let bits = x.to_bits();
+    sqrt(f32::from_bits(if bits > f32::INFINITY.to_bits() { 0 } else { bits }))
+}
+
 /// Sine and cosine for |x| ≲ 10⁴ rad: quadrant reduction with a three-part
 /// π/2 (Cody–Waite; the first part has few bits so `n·part` is exact), then
 /// the Cephes minimax polynomials on [−π/4, π/4]. Error ≈ 1e-7 absolute.
 pub fn sincos(x: f32) -> (f32, f32) {
+    sincos_inline(x)
+}
+
+/// [`sincos`] for the current loop's one call per period, inlined there.
+#[inline(always)]
+pub(crate) fn sincos_inline(x: f32) -> (f32, f32) {
     const DP1: f32 = 1.570_312_5;
     const DP2: f32 = 4.837_513e-4;
     const DP3: f32 = 7.549_79e-8;
-    let n = round(x * core::f32::consts::FRAC_2_PI);
+    let (n, quadrant) = round_to_int(x * core::f32::consts::FRAC_2_PI);
     let r = ((x - n * DP1) - n * DP2) - n * DP3;
     let z = r * r;
     let s = ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1) * z * r + r;
     let c = ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
-    match (n as i32) & 3 {
+    match quadrant & 3 {
         0 => (s, c),
         1 => (c, -s),
         2 => (-s, -c),
         _ => (-c, s),
     }
+}
+
+/// `1.5 · 2²³`: adding it to an `f32` of magnitude below 2²² leaves no
+/// fraction bits, so the FPU's own rounding (to nearest, ties to even)
+/// rounds to an integer, which sits in the low mantissa bits.
+pub(crate) const ROUND_MAGIC: f32 = 12_582_912.0;
+
+/// `x` rounded to the nearest integer (ties to even), as an `f32` and as
+/// the low bits of an integer (two's complement, exact for |x| < 2²²): two
+/// additions instead of a conversion, a compare and a correction. Outside
+/// that range the results are some integer, never a panic.
+#[inline(always)]
+pub(crate) fn round_to_int(x: f32) -> (f32, u32) {
+    let shifted = x + ROUND_MAGIC;
+    (shifted - ROUND_MAGIC, shifted.to_bits().wrapping_sub(ROUND_MAGIC.to_bits()))
 }
 
 /// Tangent through `sincos` (filter design at start-up, not the hot path).

@@ -35,6 +35,7 @@ impl Pi {
     /// limit the integrator only moves in the direction that leaves it, and it
     /// is held inside `[lo − ff, hi − ff]` so that, when the limits shrink (the
     /// q-axis voltage limit depends on u_d), recovery is immediate.
+    #[inline]
     pub fn update(&mut self, gains: &PiGains, error: f32, feedforward: f32, lo: f32, hi: f32, dt_s: f32) -> PiOutput {
         let candidate = self.integral + gains.ki * error * dt_s;
         let proportional = gains.kp * error;

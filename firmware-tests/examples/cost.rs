@@ -13,8 +13,8 @@
 //! - the error observer's forward pass (`observer::evaluate`), which the
 //!   position period will run once it is wired into the controller;
 //! - the pieces, one call at a time, to show where the instructions go;
-//! - two replacements the core could use (a single-precision polynomial
-//!   sin/cos and the FPU's `vsqrt.f32`), to show what they would save.
+//! - the core's single-precision sin/cos and `vsqrt.f32` next to the libm
+//!   routines they replaced, to show what they saved.
 //!
 //! Every figure is the mean over many calls with varying inputs; each call
 //! is counted exactly (one SysTick read before, one after; the read itself
@@ -333,7 +333,7 @@ fn main() -> ! {
     push(row(
         &m,
         "libm_expf",
-        "libm::expf (the observer runs one per hidden unit)",
+        "libm::expf (for comparison; the observer has its own f32 exp2)",
         &each(
             &m,
             500,
@@ -346,7 +346,7 @@ fn main() -> ! {
     push(row(
         &m,
         "wrap_pi",
-        "wrap_pi (libm floorf)",
+        "wrap_pi (f32 floor)",
         &each(
             &m,
             500,
@@ -434,7 +434,7 @@ fn main() -> ! {
     push(row(
         &m,
         "current_loop",
-        "CurrentLoop::step (2 sincosf, 1 sqrtf, 2 PI, SVPWM)",
+        "CurrentLoop::step (1 sin/cos + advance rotation, vsqrt, 2 PI, SVPWM)",
         &each(&m, 997, cl_input, |(abc, rotor)| {
             black_box(current_loop(
                 &mut cl,

@@ -2,7 +2,7 @@
 //! by `host-sim train`) is well formed and behaves at the edges.
 
 use servo_core::observer::model::{HIDDEN, INPUTS, INPUT_NAMES, META, MODEL};
-use servo_core::observer::{evaluate, predict, ModelKind};
+use servo_core::observer::{evaluate, log2_decay, predict, ModelKind};
 
 #[test]
 fn the_committed_model_is_well_formed() {
@@ -18,6 +18,9 @@ fn the_committed_model_is_well_formed() {
         }
     }
     assert!(MODEL.widths.iter().all(|&w| w.is_finite() && w > 0.0));
+    for (k, (&w, &d)) in MODEL.widths.iter().zip(MODEL.log2_decay.iter()).enumerate() {
+        assert_eq!(d, log2_decay(w), "unit {k}: log2_decay is log2(e)/(2 width^2) of the committed width");
+    }
     assert!(MODEL.weights.iter().chain([&MODEL.bias, &MODEL.output_scale, &MODEL.output_offset]).all(|v| v.is_finite()));
     assert!(MODEL.centres.iter().flatten().all(|v| v.is_finite()));
     assert!(META.test_rmse_m.is_finite() && META.test_rmse_m >= 0.0 && !META.dataset.is_empty());

@@ -40,6 +40,7 @@ impl CurrentLoop {
         self.pi_q.reset();
     }
 
+    #[inline]
     pub fn step(
         &mut self,
         p: &ControlParams,
@@ -50,7 +51,8 @@ impl CurrentLoop {
     ) -> CurrentLoopOutput {
         let dt = p.pwm_period_s();
         let m = &p.motor;
-        let current = park(clarke(phase_current_a), SinCos::of(rotor.electrical_angle_rad));
+        let sc = SinCos::of(rotor.electrical_angle_rad);
+        let current = park(clarke(phase_current_a), sc);
         let w = rotor.electrical_speed_rad_s;
 
         // Feedforward from the references rather than the measured currents:
@@ -61,15 +63,14 @@ impl CurrentLoop {
         // d-axis first: it holds the flux; q gets what is left of the circle.
         let v_max = linear_limit_v(bus_voltage_v) * p.limits.max_modulation;
         let ud = self.pi_d.update(&p.current_pi, reference.d - current.d, ff_d, -v_max, v_max, dt);
-        let uq_max = crate::math::sqrt(crate::math::max(v_max * v_max - ud.value * ud.value, 0.0));
+        let uq_max = crate::math::sqrt_non_negative(v_max * v_max - ud.value * ud.value);
         let uq = self.pi_q.update(&p.current_pi, reference.q - current.q, ff_q, -uq_max, uq_max, dt);
         let voltage_dq = Dq { d: ud.value, q: uq.value };
 
         // The duties act from the next period on, on average half a period
         // later still: rotate by 1.5 periods of electrical travel so the
         // applied vector sits where the rotor will be.
-        let applied_angle = rotor.electrical_angle_rad + 1.5 * dt * w;
-        let out = svpwm(inverse_park(voltage_dq, SinCos::of(applied_angle)), bus_voltage_v);
+        let out = svpwm(inverse_park(voltage_dq, sc.advanced_by(1.5 * dt * w)), bus_voltage_v);
         CurrentLoopOutput {
             duty: out.duty,
             current_dq: current,

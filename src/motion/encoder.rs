@@ -6,7 +6,7 @@ use core::f32::consts::PI;
 
 /// Multi-turn position and speed estimate from raw counter readings.
 ///
-/// The estimate is kept as an integer count plus a fraction in [0, 1) so that
+/// The estimate is kept as an integer count plus a fraction in [−½, ½] so that
 /// integrating tiny speed·dt increments never loses resolution far from zero,
 /// which a single f32 in radians would after a few hundred revolutions.
 #[derive(Clone, Copy, Debug, Default)]
@@ -37,6 +37,7 @@ impl EncoderTracker {
     /// the observer predicted it: a tighter test than the step bound, since
     /// the prediction already carries the speed (a type-2 loop lags a
     /// constant acceleration α by α/ki counts: ≈30 at the rotor's peak).
+    #[inline]
     pub fn update(&mut self, p: &EncoderParams, raw: u16, dt_s: f32, max_step_counts: u32, max_innovation_counts: f32) -> EncoderUpdate {
         if !self.started {
             self.started = true;
@@ -53,8 +54,10 @@ impl EncoderTracker {
         let implausible_step = step.unsigned_abs() > max_step_counts || !(err.abs() <= max_innovation_counts);
         self.est_frac += p.pll_kp_per_s * err * dt_s;
         self.speed_counts_s += p.pll_ki_per_s2 * err * dt_s;
-        let whole = crate::math::floor(self.est_frac);
-        self.est_base = self.est_base.wrapping_add(whole as i32);
+        // Nearest rather than floor: two additions instead of a conversion,
+        // a compare and a correction, every period.
+        let (whole, whole_counts) = crate::math::round_to_int(self.est_frac);
+        self.est_base = self.est_base.wrapping_add(whole_counts as i32);
         self.est_frac -= whole;
         EncoderUpdate { implausible_step }
     }
@@ -76,12 +79,37 @@ impl EncoderTracker {
         self.est_base as f32 + self.est_frac
     }
 
-    /// Estimated mechanical angle within one revolution, radians in [0, 2π).
-    pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
+    /// Estimated position within one revolution, counts in
+    /// [−½, counts_per_rev − ½].
+    #[inline]
+    pub fn counts_in_rev(&self, p: &EncoderParams) -> f32 {
         let cpr = p.counts_per_rev as i32;
-        // counts_per_rev ≥ 1 by validation; 0 would give angle 0, not a panic.
-        let in_rev = self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac;
-        in_rev * (2.0 * PI / p.counts_per_rev as f32)
+        // counts_per_rev ≥ 1 by validation; 0 would give 0, not a panic.
+        self.est_base.checked_rem_euclid(cpr).unwrap_or(0) as f32 + self.est_frac
+    }
+
+    /// Estimated position within one revolution or the one before it:
+    /// counts in [½ − counts_per_rev, counts_per_rev − ½], the same angle
+    /// modulo a turn as [`counts_in_rev`](Self::counts_in_rev) — all sin/cos
+    /// need — without the Euclidean correction.
+    #[inline]
+    pub fn counts_in_turn(&self, p: &EncoderParams) -> f32 {
+        // ≤ 32 768 by validation; the mask lets the compiler see it is not −1
+        // (no overflow case to test) without changing any valid value.
+        let cpr = (p.counts_per_rev & 0xFFFF) as i32;
+        self.est_base.checked_rem(cpr).unwrap_or(0) as f32 + self.est_frac
+    }
+
+    /// Estimated mechanical angle within one revolution, radians, within half
+    /// a count of [0, 2π).
+    pub fn angle_in_rev_rad(&self, p: &EncoderParams) -> f32 {
+        self.counts_in_rev(p) * (2.0 * PI / p.counts_per_rev as f32)
+    }
+
+    /// Estimated speed, counts per second.
+    #[inline]
+    pub fn speed_counts_s(&self) -> f32 {
+        self.speed_counts_s
     }
 
     /// Estimated mechanical speed, rad/s.

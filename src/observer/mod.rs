@@ -58,6 +58,11 @@ pub struct RbfModel<const IN: usize, const H: usize> {
     pub centres: [[f32; IN]; H],
     /// Widths `σ_k` in normalised input units (positive).
     pub widths: [f32; H],
+    /// `log₂e / 2σ_k²`, so that `φ_k = 2^(−log2_decay_k · ‖z − c_k‖²)`:
+    /// one multiply and a base-2 exponential per unit instead of a
+    /// division and a natural one. The code generator writes it next to
+    /// `widths`, as [`log2_decay`] of each (tests check they agree).
+    pub log2_decay: [f32; H],
     /// Output weights `w_k`.
     pub weights: [f32; H],
     /// Linear skip term `a_j` on the normalised inputs (zeros: none).
@@ -66,6 +71,14 @@ pub struct RbfModel<const IN: usize, const H: usize> {
     /// Metres per unit of network output, and the output's offset (m).
     pub output_scale: f32,
     pub output_offset: f32,
+}
+
+/// `log₂e / 2σ²` for a width `σ`, computed in `f64` from the `f32` width and
+/// rounded once: what the code generator writes into
+/// [`RbfModel::log2_decay`] (host side; the target only reads the table).
+pub fn log2_decay(width: f32) -> f32 {
+    let s = f64::from(width);
+    (core::f64::consts::LOG2_E / (2.0 * s * s)) as f32
 }
 
 /// One evaluation of the observer.
@@ -112,10 +125,9 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
     for (&a, &zi) in model.linear.iter().zip(z.iter()) {
         acc += a * zi;
     }
-    for ((c, &sigma), &w) in model.centres.iter().zip(model.widths.iter()).zip(model.weights.iter()) {
-        let d2: f32 = c.iter().zip(z.iter()).map(|(&ci, &zi)| (zi - ci) * (zi - ci)).sum();
-        let g = 0.5 / (sigma * sigma);
-        acc += w * crate::math::exp_neg(-d2 * g);
+    let units = model.centres.iter().zip(model.log2_decay.iter()).zip(model.weights.iter());
+    for ((c, &decay), &w) in units {
+        acc += w * exp2_neg(distance2(c, &z) * decay);
     }
     let value = model.output_offset + model.output_scale * acc;
     if valid && value.is_finite() {
@@ -123,4 +135,44 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
     } else {
         Prediction { value_m: 0.0, clamped, valid: false }
     }
+}
+
+/// `‖z − c‖²`, summed in input order. Written over chunks of four so the
+/// optimiser (at `opt-level = "s"`, which does not unroll) emits the four
+/// inputs straight-line; the remainder loop is empty for the 4-input model.
+#[inline(always)]
+fn distance2<const IN: usize>(c: &[f32; IN], z: &[f32; IN]) -> f32 {
+    let (c4, c_rest) = c.as_chunks::<4>();
+    let (z4, z_rest) = z.as_chunks::<4>();
+    let mut d2 = 0.0_f32;
+    for ([c0, c1, c2, c3], [z0, z1, z2, z3]) in c4.iter().zip(z4.iter()) {
+        let (e0, e1, e2, e3) = (z0 - c0, z1 - c1, z2 - c2, z3 - c3);
+        d2 += e0 * e0;
+        d2 += e1 * e1;
+        d2 += e2 * e2;
+        d2 += e3 * e3;
+    }
+    for (&ci, &zi) in c_rest.iter().zip(z_rest.iter()) {
+        d2 += (zi - ci) * (zi - ci);
+    }
+    d2
+}
+
+/// `2^(−t)` for `t ≥ 0` (a Gaussian unit's activation): `−t` split into the
+/// nearest integer `k` (magic-number rounding) and `f ∈ [−½, ½]`; Cephes'
+/// degree-6 `exp2f` polynomial for `2^f` (relative error ≈ 1e-7, as the
+/// `f32` result itself); `2^k` added into the exponent bits. Above
+/// `t = 125` (or for NaN) the result is `2⁻¹²⁵` ≈ 2e-38 — a unit that
+/// contributes nothing — rather than a subnormal.
+#[inline(always)]
+fn exp2_neg(t: f32) -> f32 {
+    let u = if t < 125.0 { -t } else { -125.0 };
+    let shifted = u + crate::math::ROUND_MAGIC;
+    let k = shifted.to_bits().wrapping_sub(crate::math::ROUND_MAGIC.to_bits());
+    let f = u - (shifted - crate::math::ROUND_MAGIC);
+    let p = 1.0
+        + f * (6.931_472e-1
+            + f * (2.402_264_8e-1 + f * (5.550_332_5e-2 + f * (9.618_437e-3 + f * (1.339_887_4e-3 + f * 1.535_336_2e-4)))));
+    // p ∈ [0.70, 1.42] and k ∈ [−125, 0]: the sum of exponents stays normal.
+    f32::from_bits(p.to_bits().wrapping_add(k.wrapping_shl(23)))
 }

@@ -121,7 +121,7 @@ impl Family for Foc {
         Column::exact("voltage_limited"),
     ];
     const WHY: &'static str =
-        "same f32 operations and the same libm sincosf/sqrtf/floorf on both: bit-identical";
+        "same f32 operations and the core's own f32 sin/cos on both, correctly rounded sqrt (vsqrt / sqrtf): bit-identical";
 
     fn new() -> Self {
         Self {
@@ -365,7 +365,7 @@ impl Family for ClosedLoop {
         Column::f32("motor_position_m", Tol::Ulps(0)),
     ];
     const WHY: &'static str =
-        "same f32 operations and libm on both, replayed from the same samples: bit-identical";
+        "same f32 operations and the core's own f32 maths on both, replayed from the same samples: bit-identical";
 
     fn new() -> Self {
         Self {
@@ -429,7 +429,7 @@ impl Family for Observer {
         Column::exact("clamped"),
         Column::exact("valid"),
     ];
-    const WHY: &'static str = "same f32 operations and the same libm expf on both: bit-identical";
+    const WHY: &'static str = "same f32 operations and the core's own f32 exp2 on both: bit-identical";
 
     fn new() -> Self {
         Self

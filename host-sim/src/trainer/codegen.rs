@@ -3,12 +3,15 @@
 //!
 //! Every `f32` is printed with Rust's shortest round-trip formatting, so the
 //! compiled constant is exactly `value as f32`, the same value
-//! [`to_core_model`] builds in memory.
+//! [`to_core_model`] builds in memory. Next to the widths the file carries
+//! what the forward pass uses, `log₂e / 2σ²` per unit
+//! ([`servo_core::observer::log2_decay`] of the `f32` width), so the target
+//! multiplies instead of dividing.
 
 use super::dataset::{ModelKind, INPUT_COLUMNS, N_INPUTS};
 use super::network::TrainedModel;
 use anyhow::{bail, Result};
-use servo_core::observer::RbfModel;
+use servo_core::observer::{log2_decay, RbfModel};
 use std::fmt::Write as _;
 
 /// Metadata written next to the weights.
@@ -48,6 +51,7 @@ pub fn to_core_model<const H: usize>(m: &TrainedModel) -> Result<RbfModel<N_INPU
         input_scale: [0.0; N_INPUTS],
         centres: [[0.0; N_INPUTS]; H],
         widths: [0.0; H],
+        log2_decay: [0.0; H],
         weights: [0.0; H],
         linear: [0.0; N_INPUTS],
         bias: to_f32(m.bias(), "bias")?,
@@ -71,6 +75,7 @@ pub fn to_core_model<const H: usize>(m: &TrainedModel) -> Result<RbfModel<N_INPU
         if !(out.widths[k] > 0.0) {
             bail!("width {k} = {s} rounds to a non-positive f32");
         }
+        out.log2_decay[k] = log2_decay(out.widths[k]);
         out.weights[k] = to_f32(*w, "weight")?;
     }
     Ok(out)
@@ -147,6 +152,8 @@ pub fn generate(m: &TrainedModel, meta: &CodegenMeta) -> Result<String> {
     }
     writeln!(w, "    ],")?;
     writeln!(w, "    widths: {},", row(&m.widths(), "width")?)?;
+    let decay = m.widths().iter().map(|&sig| Ok(format!("{:?}", log2_decay(to_f32(sig, "width")?)))).collect::<Result<Vec<_>>>()?;
+    writeln!(w, "    log2_decay: [{}],", decay.join(", "))?;
     writeln!(w, "    weights: {},", row(m.weights(), "weight")?)?;
     writeln!(w, "    linear: {},", row(&m.linear_coefficients(), "linear coefficient")?)?;
     writeln!(w, "    bias: {},", lit(m.bias(), "bias")?)?;
