@@ -119,6 +119,7 @@ struct Derived {
     /// Rotor speed below which an active short circuit's steady current,
     /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
     short_circuit_speed_max_rad_s: f32,
+    speed_ticks_per_position_tick: u32,
 }
 
 impl Derived {
@@ -137,6 +138,8 @@ impl Derived {
             brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
             brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
             short_circuit_speed_max_rad_s: short_circuit_speed_max_rad_s(p),
+            // Validated: a non-zero multiple of the speed divider.
+            speed_ticks_per_position_tick: p.rates.position_loop_divider / p.rates.speed_loop_divider,
         }
     }
 }
@@ -172,6 +175,11 @@ pub struct Controller {
     /// only when its condition has gone.
     present: FaultSet,
     tick: u32,
+    /// Periods left to the next speed tick, and speed ticks left to the
+    /// next position tick (the position divider is a multiple of the speed
+    /// one): a count-down costs less than two divisions every period.
+    speed_countdown: u32,
+    position_countdown: u32,
     encoder: EncoderTracker,
     current_loop: CurrentLoop,
     speed_loop: SpeedLoop,
@@ -263,6 +271,9 @@ impl Controller {
             faults: FaultSet::NONE,
             present: FaultSet::NONE,
             tick: 0,
+            // The first ticks fall on period `divider`, as `tick % divider == 0` did.
+            speed_countdown: params.rates.speed_loop_divider,
+            position_countdown: params.rates.position_loop_divider / params.rates.speed_loop_divider,
             encoder: EncoderTracker::new(),
             current_loop: CurrentLoop::new(),
             speed_loop: SpeedLoop::new(&params),
@@ -362,6 +373,7 @@ impl Controller {
     }
 
     /// Latches `f`; new faults get their reaction.
+    #[inline(never)]
     fn raise(&mut self, f: FaultSet) {
         let new = f.difference(self.faults);
         if new.is_empty() {
@@ -390,6 +402,7 @@ impl Controller {
     }
 
     /// Decelerates from the measured motion to rest and holds there.
+    #[inline(never)]
     fn begin_stop(&mut self) {
         let v = self.speed_rad_s() * self.params.metres_per_rad();
         self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
@@ -542,7 +555,7 @@ impl Controller {
     }
 
     /// Checks one sample; returns the conditions present now.
-    fn check_inputs(&self, s: &SensorSample) -> FaultSet {
+    fn check_inputs(&mut self, s: &SensorSample) -> FaultSet {
         let f = &self.params.faults;
         let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
         let [a, b, c] = s.phase_current_a;
@@ -557,17 +570,26 @@ impl Controller {
             probe += finite_probe(x);
         }
         if probe != 0.0 {
+            self.current_sum_count = 0;
             present.insert(FaultSet::NON_FINITE_INPUT);
             return present;
         }
+        // Only finite readings are kept for telemetry and `Enable`'s bus check.
+        self.bus_voltage_v = v;
+        self.terminal_position_m = s.terminal_position_m;
         use crate::math::max;
         if max(max(a.abs(), b.abs()), c.abs()) > f.overcurrent_trip_a {
             present.insert(FaultSet::OVERCURRENT);
         }
-        // Σi must persist over `current_sum_periods` (counted in `step`):
-        // noise on three independent channels adds up too.
-        if (a + b + c).abs() > f.current_sum_max_a && self.current_sum_count.saturating_add(1) >= f.current_sum_periods {
-            present.insert(FaultSet::CURRENT_SENSOR);
+        // Σi must persist over `current_sum_periods`: noise on three
+        // independent channels adds up too.
+        if (a + b + c).abs() > f.current_sum_max_a {
+            self.current_sum_count = self.current_sum_count.saturating_add(1);
+            if self.current_sum_count >= f.current_sum_periods {
+                present.insert(FaultSet::CURRENT_SENSOR);
+            }
+        } else {
+            self.current_sum_count = 0;
         }
         // The usual case, a bus inside its window, costs one test of each bound.
         if v >= f.bus_undervoltage_v && v <= f.bus_overvoltage_v {
@@ -579,7 +601,7 @@ impl Controller {
         // Only while the bridge is on or the fault is latched: a board powered
         // from USB with the bus off must still be configurable, but a latched
         // undervoltage must not clear during the sag.
-        let watching = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Aligning)
+        let watching = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Aligning | Mode::Braking)
             || self.faults.contains(FaultSet::BUS_UNDERVOLTAGE);
         if v < f.bus_undervoltage_v && watching {
             present.insert(FaultSet::BUS_UNDERVOLTAGE);
@@ -592,16 +614,6 @@ impl Controller {
     pub fn step(&mut self, s: &SensorSample) -> PwmCommand {
         self.tick = self.tick.wrapping_add(1);
         let mut present = self.check_inputs(s);
-        let [a, b, c] = s.phase_current_a;
-        self.current_sum_count = if (a + b + c).abs() > self.params.faults.current_sum_max_a {
-            self.current_sum_count.saturating_add(1)
-        } else {
-            0
-        };
-        if !present.contains(FaultSet::NON_FINITE_INPUT) {
-            self.bus_voltage_v = s.bus_voltage_v;
-            self.terminal_position_m = s.terminal_position_m;
-        }
         let enc = self.encoder.update(
             &self.params.encoder,
             s.encoder_count,
@@ -613,8 +625,17 @@ impl Controller {
             // A jump is an event, not a standing condition: it can be cleared.
             self.raise(FaultSet::ENCODER_JUMP);
         }
-        let speed_tick = self.tick.is_multiple_of(self.params.rates.speed_loop_divider);
-        let position_tick = self.tick.is_multiple_of(self.params.rates.position_loop_divider);
+        self.speed_countdown = self.speed_countdown.wrapping_sub(1);
+        let speed_tick = self.speed_countdown == 0;
+        let mut position_tick = false;
+        if speed_tick {
+            self.speed_countdown = self.params.rates.speed_loop_divider;
+            self.position_countdown = self.position_countdown.wrapping_sub(1);
+            position_tick = self.position_countdown == 0;
+            if position_tick {
+                self.position_countdown = self.derived.speed_ticks_per_position_tick;
+            }
+        }
         // Causes checked at the outer rates keep their last verdict between
         // their ticks, or a clear between two ticks would find them gone.
         present = present.union(if speed_tick {
@@ -633,46 +654,21 @@ impl Controller {
             self.raise(raised);
         }
 
-        let mut out = match self.mode {
+        // Brake output: open (true) from `current_period` while driving,
+        // closed (false) in `PwmCommand::OFF` and the short circuit; only
+        // `Braking` decides per period. Without a brake nothing is wired to
+        // it, so the same values do no harm.
+        let out = match self.mode {
             Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
             Mode::Disabled | Mode::Fault => self.bridge_off(),
             Mode::Aligning => self.align_period(s),
             Mode::Running | Mode::Stopping => {
-                self.brake_periods = self.brake_periods.saturating_add(1);
-                if self.mode == Mode::Stopping
-                    && self.params.brake.fitted
-                    && self.stop.at_rest()
-                    && self.faults.contains(SAFE_STOP_THEN_BRAKE)
-                {
-                    // A degraded motor should not be left holding: once the
-                    // stop is at rest, hand the load to the brake and switch off.
-                    self.brake_periods = 0;
-                    self.mode = Mode::Braking;
+                if position_tick {
+                    self.brake_tick();
                 }
                 self.run_period(s, position_tick, speed_tick)
             }
-            Mode::Braking => {
-                if self.stop.at_rest() {
-                    self.brake_periods = self.brake_periods.saturating_add(1);
-                }
-                if self.brake_periods > self.derived.brake_engage_periods {
-                    self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
-                    self.bridge_off()
-                } else {
-                    self.run_period(s, position_tick, speed_tick)
-                }
-            }
-        };
-        out.brake_release = if self.params.brake.fitted {
-            match self.mode {
-                Mode::Running | Mode::Stopping | Mode::Aligning => true,
-                // Closing starts once the stop ramp is at rest.
-                Mode::Braking => !self.stop.at_rest(),
-                Mode::Disabled | Mode::Fault => false,
-            }
-        } else {
-            // No brake: the output follows the bridge and drives nothing.
-            out.enable
+            Mode::Braking => self.braking_period(s, position_tick, speed_tick),
         };
         if position_tick {
             self.cut_telemetry();
@@ -687,6 +683,42 @@ impl Controller {
     /// short-circuit current stays inside `limits.current_max_a` (≈89 rad/s,
     /// 70 mm/s of rod, for the default motor), and still ended for good if a
     /// phase reads above that limit.
+    /// Brake bookkeeping at the position rate while driving: the release
+    /// wait after `Enable`, and the hand-over to the brake after an open
+    /// phase stop came to rest.
+    #[inline(never)]
+    fn brake_tick(&mut self) {
+        self.brake_periods = self.brake_periods.saturating_add(self.params.rates.position_loop_divider);
+        if self.mode == Mode::Stopping
+            && self.params.brake.fitted
+            && self.stop.at_rest()
+            && self.faults.contains(SAFE_STOP_THEN_BRAKE)
+        {
+            // A degraded motor should not be left holding: once the stop is
+            // at rest, hand the load to the brake and switch off.
+            self.brake_periods = 0;
+            self.mode = Mode::Braking;
+        }
+    }
+
+    /// `Braking`: the loops hold while the brake closes, then the bridge
+    /// goes off.
+    #[inline(never)]
+    fn braking_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
+        if self.stop.at_rest() {
+            self.brake_periods = self.brake_periods.saturating_add(1);
+        }
+        if self.brake_periods > self.derived.brake_engage_periods {
+            self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+            return self.bridge_off();
+        }
+        let mut out = self.run_period(s, position_tick, speed_tick);
+        // Closing starts once the stop ramp is at rest.
+        out.brake_release = !(self.params.brake.fitted && self.stop.at_rest());
+        out
+    }
+
+    #[inline(never)]
     fn short_circuit(&mut self, s: &SensorSample) -> PwmCommand {
         self.short_circuit_periods = self.short_circuit_periods.saturating_sub(1);
         let limit = self.params.limits.current_max_a;
@@ -702,6 +734,7 @@ impl Controller {
     }
 
     /// Bridge off: loops reset, the command follows the rod.
+    #[inline(never)]
     fn bridge_off(&mut self) -> PwmCommand {
         self.hold_here();
         self.reset_loops();
@@ -712,6 +745,7 @@ impl Controller {
 
     /// Winding temperature, speed following, encoder loss and open phases,
     /// at the speed rate. Returns the standing conditions; raises the events.
+    #[inline(never)]
     fn check_speed_period(&mut self, phase_current_a: [f32; 3]) -> FaultSet {
         let mut present = FaultSet::NONE;
         let dt = self.derived.speed_period_s;
@@ -764,6 +798,7 @@ impl Controller {
     }
 
     /// Following error, overtravel and the soft limits, at the position rate.
+    #[inline(never)]
     fn check_motion(&mut self) -> FaultSet {
         let mut present = FaultSet::NONE;
         let x = self.motor_position_m();
@@ -862,6 +897,7 @@ impl Controller {
         self.trajectory.sample(t)
     }
 
+    #[inline(never)]
     fn position_period(&mut self, s: &SensorSample) {
         let r = self.next_reference();
         self.position_reference_m = r.position_m;
@@ -915,6 +951,7 @@ impl Controller {
         }
     }
 
+    #[inline(never)]
     fn align_period(&mut self, s: &SensorSample) -> PwmCommand {
         self.align_ticks = self.align_ticks.saturating_add(1);
         let elapsed_s = self.align_ticks as f32 * self.derived.pwm_period_s;
@@ -931,6 +968,7 @@ impl Controller {
         self.current_period(s, RotorState { electrical_angle_rad: 0.0, electrical_speed_rad_s: 0.0 })
     }
 
+    #[inline(never)]
     fn cut_telemetry(&mut self) {
         let mut limits = self.limits;
         limits.insert(self.pending_limits);
