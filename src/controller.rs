@@ -139,7 +139,7 @@ impl Derived {
             brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
             short_circuit_speed_max_rad_s: short_circuit_speed_max_rad_s(p),
             // Validated: a non-zero multiple of the speed divider.
-            speed_ticks_per_position_tick: p.rates.position_loop_divider / p.rates.speed_loop_divider,
+            speed_ticks_per_position_tick: p.rates.position_loop_divider.checked_div(p.rates.speed_loop_divider).unwrap_or(1),
         }
     }
 }
@@ -273,7 +273,7 @@ impl Controller {
             tick: 0,
             // The first ticks fall on period `divider`, as `tick % divider == 0` did.
             speed_countdown: params.rates.speed_loop_divider,
-            position_countdown: params.rates.position_loop_divider / params.rates.speed_loop_divider,
+            position_countdown: params.rates.position_loop_divider.checked_div(params.rates.speed_loop_divider).unwrap_or(1),
             encoder: EncoderTracker::new(),
             current_loop: CurrentLoop::new(),
             speed_loop: SpeedLoop::new(&params),
