@@ -6,10 +6,11 @@
 
 mod diagnose_support;
 
-use diagnose_support::{physics, random_effect, simulate};
+use diagnose_support::random_effect;
+use diagnose_support::truth::{nominal_rig, truth_log};
 use host_sim::diagnose::diagnose;
 use host_sim::diagnose::effects::{Effect, ALL};
-use host_sim::diagnose::residual::Nominal;
+use host_sim::diagnose::residual::{Nominal, Physics};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::fmt::Write as _;
@@ -34,11 +35,13 @@ fn base_seed() -> u64 {
 
 fn run_case(truth: &[Effect], seed: u64) -> Case {
     let seed = seed + 100_000 * base_seed();
-    let p = physics();
+    let rig = nominal_rig();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let effects: Vec<_> = truth.iter().map(|e| random_effect(*e, &mut rng)).collect();
-    let train = simulate(&p, &effects, 1000 + seed, DURATION_S);
-    let held = simulate(&p, &effects, 2000 + seed, DURATION_S);
+    // Training and held-out logs: two different random experiments.
+    let train = truth_log(&rig, &effects, 1000 + seed, DURATION_S);
+    let held = truth_log(&rig, &effects, 2000 + seed, DURATION_S);
+    let p = Physics::from_rig(&rig);
     let d = diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).expect("diagnosis");
     let s = d.summary;
     Case {

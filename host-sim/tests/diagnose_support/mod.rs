@@ -12,6 +12,8 @@
 //! diagnosis, which is what a truth rig = nominal + effect means.
 #![allow(dead_code)]
 
+pub mod truth;
+
 use host_sim::config::RigConfig;
 use host_sim::diagnose::effects::Effect;
 use host_sim::diagnose::log::Log;
