@@ -5,7 +5,7 @@
 mod diagnose_support;
 
 use diagnose_support::truth::{nominal_rig, plant_effects, truth_log};
-use diagnose_support::{physics, simulate, TrueEffect};
+use diagnose_support::TrueEffect;
 use host_sim::scenario::identification::{run, Experiment};
 use host_sim::diagnose::diagnose;
 use host_sim::diagnose::effects::Effect;
@@ -76,9 +76,10 @@ fn an_effect_the_training_data_cannot_fit_is_reported_not_ranked() {
 fn phase_currents_are_park_transformed_with_the_encoder_angle() {
     // The same log with i_q replaced by the phase currents it implies
     // (i_d = 0, amplitude-invariant Clarke) gives the same diagnosis.
-    let p = physics();
+    let rig = nominal_rig();
+    let p = Physics::from_rig(&rig);
     let truth = [TrueEffect { effect: Effect::LoadOffset, params: vec![120.0], hyper: 0.0 }];
-    let dq = simulate(&p, &truth, 41, 6.0);
+    let dq = truth_log(&rig, &truth, 41, 6.0);
     let mut abc = dq.clone();
     let iq = abc.columns.remove("current_q_a").unwrap();
     let th = abc.get("motor_angle_rad").unwrap().to_vec();
