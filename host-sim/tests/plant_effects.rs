@@ -183,7 +183,7 @@ fn current_sensor_gain_offset_and_encoder_eccentricity_are_in_the_readings() {
     let s = plant.sample();
     let truth = plant.state().phase_current_a;
     let o = [0.3, -0.5 * 0.3 + 0.75f64.sqrt() * -0.2, -0.5 * 0.3 - 0.75f64.sqrt() * -0.2];
-    let lsb =2.0 * p.sensors.current_full_scale_a / 2f64.powi(p.sensors.adc_bits as i32);
+    let lsb = 2.0 * p.sensors.current_full_scale_a / 2f64.powi(p.sensors.adc_bits as i32);
     for k in 0..3 {
         let expect = 1.05 * truth[k] + o[k];
         assert!((f64::from(s.phase_current_a[k]) - expect).abs() <= 0.51 * lsb, "phase {k}");
