@@ -45,6 +45,10 @@ pub struct Physics {
     pub rod_viscous_n_s_m: f64,
     /// Structural damping across the axial compliance, N·s/m.
     pub axial_damping_n_s_m: f64,
+    /// Screw inertia (inside `j_rot`), kg·m², and its bearings' viscous
+    /// friction (inside `b_rot`), N·m·s/rad.
+    pub j_screw: f64,
+    pub b_screw: f64,
     pub stribeck_m_s: f64,
     pub gravity: f64,
     pub tilt_deg: f64,
@@ -78,6 +82,8 @@ impl Physics {
             rod_static_n: p.rod.static_friction_n,
             rod_viscous_n_s_m: p.rod.viscous_friction_n_s_m,
             axial_damping_n_s_m: p.deformation.axial_damping_n_s_m,
+            j_screw: p.screw.inertia_kg_m2,
+            b_screw: p.screw.viscous_friction_n_m_s_rad,
             stribeck_m_s: p.rod.stribeck_velocity_m_s,
             gravity: p.load.gravity_m_s2,
             tilt_deg: p.load.initial_tilt_deg,
@@ -108,6 +114,18 @@ impl Physics {
         let rod =
             self.rod_coulomb_n + (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
         self.b_rot * omega + self.sgn(omega) * (self.drag_n_m + self.k * rod + self.mu * self.k * f_ax.abs())
+    }
+
+    /// The torsional path (coupling + screw twist to the nut) carries, on
+    /// top of the thread's `(L/2π) F` that `deflection` includes, the torque
+    /// that accelerates the screw and the nut's friction torque; its wind-up
+    /// puts the nut behind by `(L/2π) C_rot(x) (J_s α + T_f)`, m. `dir`: the
+    /// last direction of motion, holding the friction at rest (as the seal).
+    pub fn screw_wind_up_m(&self, omega: f64, alpha: f64, f_nut: f64, x: f64, dir: f64) -> f64 {
+        let moving = (omega / self.omega_eps).abs().tanh();
+        let s = moving * omega.signum() + (1.0 - moving) * dir;
+        let t_f = self.b_screw * omega + s * (self.drag_n_m + self.mu * self.k * f_nut.abs());
+        self.k * self.compliance.torsional_compliance_rad_per_n_m(x) * (self.j_screw * alpha + t_f)
     }
 
     /// Damping ratio of the rod's axial mode at local compliance `c` (m/N).
@@ -515,7 +533,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (Nominal::Physics(p), Some(sc)) if encoder => {
                     let y = sc[i] - x_motor[i];
                     yp.push(y);
-                    rp.push(y + p.deflection(f_ax, x));
+                    rp.push(y + p.deflection(f_ax, x) + p.screw_wind_up_m(om, al, f_ax, x, dir));
                 }
                 (Nominal::Regression(r), Some(sc)) => {
                     let Some(re) = reference else { continue };
