@@ -4,24 +4,28 @@
 
 mod diagnose_support;
 
-use diagnose_support::{physics, simulate, simulate_trajectory, single_move, TrueEffect};
+use diagnose_support::truth::{nominal_rig, plant_effects, truth_log};
+use diagnose_support::TrueEffect;
+use host_sim::scenario::identification::{run, Experiment};
 use host_sim::diagnose::diagnose;
 use host_sim::diagnose::effects::Effect;
-use host_sim::diagnose::residual::Nominal;
+use host_sim::diagnose::residual::{Nominal, Physics};
 
 #[test]
 fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
     // With no current logged, eccentricity shows only in the position
     // channel, where it has the shape of a once-per-revolution lead error.
-    let p = physics();
+    // Truth rig: full plant + control core with the lead error.
+    let rig = nominal_rig();
+    let p = Physics::from_rig(&rig);
     let truth = [TrueEffect { effect: Effect::LeadErrorPerRev, params: vec![6e-6, -3e-6], hyper: 0.0 }];
     let strip = |mut l: host_sim::diagnose::log::Log| {
         l.columns.remove("current_q_a");
         l.columns.remove("voltage_q_v");
         l
     };
-    let train = strip(simulate(&p, &truth, 31, 8.0));
-    let held = strip(simulate(&p, &truth, 32, 8.0));
+    let train = strip(truth_log(&rig, &truth, 31, 8.0));
+    let held = strip(truth_log(&rig, &truth, 32, 8.0));
     let d = diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).unwrap();
     let s = &d.summary;
     let pair = s.indistinguishable.iter().any(|(a, b)| {
@@ -42,12 +46,17 @@ fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
 
 #[test]
 fn an_effect_the_training_data_cannot_fit_is_reported_not_ranked() {
-    // Training: one move up only; held-out: the usual back-and-forth. The
-    // negative-direction friction parameters are not excited in training.
-    let p = physics();
+    // Training: one move up only (planned by the core); held-out: the usual
+    // back-and-forth. The negative-direction friction parameters are not
+    // excited in training.
+    let rig = nominal_rig();
+    let p = Physics::from_rig(&rig);
     let truth = [TrueEffect { effect: Effect::CoulombAsym, params: vec![0.05, 0.12], hyper: 0.0 }];
-    let train = simulate_trajectory(&p, &truth, 5, &single_move(0.1, 0.35, 2.5, 6.0));
-    let held = simulate(&p, &truth, 6, 8.0);
+    let mut one_way = Experiment::random(&rig, 5, 6.0);
+    one_way.start_m = 0.1;
+    one_way.moves = vec![(0.3, 0.35)];
+    let train = run(&rig, &plant_effects(&rig, &truth), &one_way, 5).unwrap();
+    let held = truth_log(&rig, &truth, 6, 8.0);
     let d = diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).unwrap();
     let s = &d.summary;
     let nr = |e: &str| s.not_ranked.iter().find(|n| n.effect == e).map(|n| (n.status.clone(), n.reason.clone()));
@@ -67,9 +76,10 @@ fn an_effect_the_training_data_cannot_fit_is_reported_not_ranked() {
 fn phase_currents_are_park_transformed_with_the_encoder_angle() {
     // The same log with i_q replaced by the phase currents it implies
     // (i_d = 0, amplitude-invariant Clarke) gives the same diagnosis.
-    let p = physics();
+    let rig = nominal_rig();
+    let p = Physics::from_rig(&rig);
     let truth = [TrueEffect { effect: Effect::LoadOffset, params: vec![120.0], hyper: 0.0 }];
-    let dq = simulate(&p, &truth, 41, 6.0);
+    let dq = truth_log(&rig, &truth, 41, 6.0);
     let mut abc = dq.clone();
     let iq = abc.columns.remove("current_q_a").unwrap();
     let th = abc.get("motor_angle_rad").unwrap().to_vec();

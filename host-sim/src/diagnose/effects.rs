@@ -73,7 +73,7 @@ impl Effect {
             Effect::ViscousAsym => "extra viscous friction, different per direction: b₊·ω₊ + b₋·ω₋",
             Effect::Stribeck => "Stribeck (breakaway) friction T_s·exp(−(ω/ω_s)²)·sgn ω, ω_s on a grid",
             Effect::Backlash => {
-                "lost motion b: the rod follows the motor side through a play of width b (play operator, b on a grid)"
+                "lost motion b: the rod rests on the flank the nut force pushes it to (physical nominal), or follows the motor side through a play of width b (play operator, b on a grid; regression nominal)"
             }
             Effect::ScrewStiffness => "position-dependent screw compliance: extra deflection c·F·x",
             Effect::HertzContact => "nonlinear (Hertz) contact: extra deflection C·sgn F·((|F|+F_p)^⅔ − F_p^⅔)",
@@ -106,6 +106,16 @@ impl Effect {
             Effect::CurrentSensor => &["gain_error", "offset_alpha_a", "offset_beta_a"],
             Effect::EncoderEccentricity => &["eccentricity_sin_rad", "eccentricity_cos_rad"],
             Effect::LoadOffset => &["load_offset_n"],
+        }
+    }
+
+    /// Shape parameter on a grid for this nominal, if any: with the
+    /// physical model the lost motion follows the nut force (`flank`) and
+    /// is linear in the play, with no shape to search.
+    pub fn grid_for(self, nominal: &Nominal) -> Option<(&'static str, Vec<f64>)> {
+        match (self, nominal) {
+            (Effect::Backlash, Nominal::Physics(_)) => None,
+            _ => self.grid(),
         }
     }
 
@@ -183,8 +193,13 @@ impl Effect {
                 out[0][TORQUE] = (-(w / hyper).powi(2)).exp() * sgn;
             }
             Effect::Backlash => {
-                let k = backlash_grid_m().iter().position(|b| *b == hyper).unwrap_or(0);
-                out[0][POSITION] = seg.play.get(k).map_or(-0.5 * seg.dir[i], |p| p[i]);
+                out[0][POSITION] = match nominal {
+                    Nominal::Physics(_) => seg.flank.get(i).copied().unwrap_or(-0.5 * seg.dir[i]),
+                    Nominal::Regression(_) => {
+                        let k = backlash_grid_m().iter().position(|b| *b == hyper).unwrap_or(0);
+                        seg.play.get(k).map_or(-0.5 * seg.dir[i], |p| p[i])
+                    }
+                };
             }
             Effect::ScrewStiffness => out[0][POSITION] = -f * seg.x[i],
             Effect::HertzContact => {
@@ -226,15 +241,30 @@ impl Effect {
                 // d²/dt² sin θ and cos θ.
                 let dds = c * al - s * w2;
                 let ddc = -s * al - c * w2;
-                let cm = seg.c_loc[i]
-                    * match nominal {
-                        Nominal::Physics(p) => p.m_moving * p.k,
-                        Nominal::Regression(_) => 0.0,
-                    };
-                // (No Savitzky–Golay gain here: at one period per revolution
-                // the suite scores better without it.)
-                out[0][TORQUE] = -j_eq * dds;
-                out[1][TORQUE] = -j_eq * ddc;
+                // The rod follows the nut's once-per-revolution ripple through
+                // the drive train's axial spring: a mass on a spring shaken at
+                // Ω = |ω| answers with the gain H of its mode (ω_r² = 1/(c m));
+                // H → 1 slow (rigid body), and turns negative above the mode.
+                let (j_rot, m_k2, cm, h) = match nominal {
+                    // The rod's inertial force is measured (scale): only
+                    // the rotor's inertia sees the ripple in the torque,
+                    // and the deflection it causes is in the nut force.
+                    Nominal::Physics(p) if seg.rod_from_scale => (p.j_rot, 0.0, 0.0, 0.0),
+                    Nominal::Physics(p) => {
+                        let r = om * om * seg.c_loc[i] * p.m_moving;
+                        let z = p.rod_damping_ratio(seg.c_loc[i]);
+                        let h = (1.0 - r) / ((1.0 - r).powi(2) + 4.0 * z * z * r);
+                        (p.j_rot, p.m_moving * p.k * p.k, seg.c_loc[i] * p.m_moving * p.k, h)
+                    }
+                    Nominal::Regression(_) => (j_eq, 0.0, 0.0, 1.0),
+                };
+                // The torque residual is Savitzky–Golay smoothed (the current,
+                // or the acceleration): so is the once-per-revolution ripple.
+                let g = sg_smooth_gain(seg.sg_m, om * seg.dt);
+                let j_ripple = g * (j_rot + m_k2 * h);
+                let cm = cm * h;
+                out[0][TORQUE] = -j_ripple * dds;
+                out[1][TORQUE] = -j_ripple * ddc;
                 out[0][POSITION] = -k * s + cm * dds;
                 out[1][POSITION] = -k * c + cm * ddc;
             }

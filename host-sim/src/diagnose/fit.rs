@@ -26,7 +26,7 @@ pub fn channel_weights(train: &[&Segment]) -> [f64; NCH] {
         let (mut ss, mut n) = (0.0, 0usize);
         for s in train {
             if let Some(r) = &s.r[c] {
-                ss += r.iter().map(|x| x * x).sum::<f64>();
+                ss += r.iter().enumerate().map(|(i, x)| (s.weight(c, i) * x).powi(2)).sum::<f64>();
                 n += r.len();
             }
         }
@@ -69,7 +69,7 @@ pub fn solve(terms: &[Term], segs: &[&Segment], nominal: &Nominal, w: &[f64; NCH
             row(terms, s, i, nominal, &mut phi);
             for c in 0..NCH {
                 let Some(r) = &s.r[c] else { continue };
-                let wc2 = w[c] * w[c];
+                let wc2 = (w[c] * s.weight(c, i)).powi(2);
                 if wc2 == 0.0 {
                     continue;
                 }
@@ -142,7 +142,7 @@ pub fn gap(segs: &[&Segment], pred: Option<&[ChannelPred]>, w: &[f64; NCH]) -> f
             let p = pred.and_then(|p| p[k][c].as_ref());
             for i in 0..r.len() {
                 let e = r[i] - p.map_or(0.0, |p| p[i]);
-                ss += (w[c] * e).powi(2);
+                ss += (w[c] * s.weight(c, i) * e).powi(2);
             }
             n += r.len();
         }
@@ -188,7 +188,7 @@ pub struct EffectFit {
 }
 
 pub fn fit_effect(effect: Effect, train: &[&Segment], nominal: &Nominal, w: &[f64; NCH]) -> Result<EffectFit, String> {
-    let grid = effect.grid().map_or(vec![0.0], |g| g.1);
+    let grid = effect.grid_for(nominal).map_or(vec![0.0], |g| g.1);
     let mut best: Option<(usize, EffectFit)> = None;
     let mut last_err = String::new();
     for (gi, h) in grid.iter().enumerate() {
@@ -209,8 +209,13 @@ pub fn fit_effect(effect: Effect, train: &[&Segment], nominal: &Nominal, w: &[f6
         Some((gi, fit)) => {
             if effect == Effect::Backlash && fit.params[0] < 0.0 {
                 Err(format!("fitted lost motion {:.3e} m is negative (unphysical)", fit.params[0]))
+            } else if effect == Effect::Stribeck && fit.params[0] < 0.0 {
+                // Breakaway friction exceeds the sliding one by definition;
+                // less friction at low speed than the nominal is not this
+                // effect (it is what smoothing the onset of motion leaves).
+                Err(format!("fitted Stribeck torque {:.3e} N·m is negative (unphysical)", fit.params[0]))
             } else if grid.len() > 2 && (gi == 0 || gi == grid.len() - 1) {
-                let (name, _) = effect.grid().expect("grid");
+                let (name, _) = effect.grid_for(nominal).expect("grid");
                 Err(format!("shape parameter `{name}` optimum {} at the grid edge", grid[gi]))
             } else {
                 Ok(fit)
@@ -238,7 +243,10 @@ pub fn unexcited(
             for i in 0..s.len() {
                 row(terms, s, i, nominal, &mut phi);
                 for (a, ea) in e.iter_mut().enumerate() {
-                    *ea += (0..NCH).filter(|c| s.r[*c].is_some()).map(|c| (w[c] * phi[a][c]).powi(2)).sum::<f64>();
+                    *ea += (0..NCH)
+                        .filter(|c| s.r[*c].is_some())
+                        .map(|c| (w[c] * s.weight(c, i) * phi[a][c]).powi(2))
+                        .sum::<f64>();
                 }
             }
             n += s.len();

@@ -234,7 +234,10 @@ fn split_segments(mut segs: Vec<Segment>) -> Vec<Segment> {
             y: std::array::from_fn(|c| s.y[c].as_ref().map(sl)),
             r: std::array::from_fn(|c| s.r[c].as_ref().map(sl)),
             encoder: s.encoder,
+            rod_from_scale: s.rod_from_scale,
             play: s.play.iter().map(sl).collect(),
+            flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
+            motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
             sg_m: s.sg_m,
             dt: s.dt,
         }
@@ -340,7 +343,7 @@ pub fn diagnose_against(
                 let fa = fit::fit_pct(&held, Some(&pred));
                 let mut params: BTreeMap<String, f64> =
                     eff.params().iter().zip(&f.params).map(|(n, v)| (n.to_string(), *v)).collect();
-                if let Some((gname, _)) = eff.grid() {
+                if let Some((gname, _)) = eff.grid_for(&nominal) {
                     params.insert(gname.into(), f.terms[0].hyper);
                 }
                 let entry = RankEntry {
@@ -383,13 +386,18 @@ pub fn diagnose_against(
                 .iter()
                 .max_by(|a, b| {
                     let gain = |c: usize| {
-                        let before: f64 =
-                            held.iter().filter_map(|s| s.r[c].as_ref()).flat_map(|r| r.iter().map(|x| x * x)).sum();
+                        let before: f64 = held
+                            .iter()
+                            .filter_map(|s| Some((s, s.r[c].as_ref()?)))
+                            .flat_map(|(s, r)| r.iter().enumerate().map(move |(i, x)| (s.weight(c, i) * x).powi(2)))
+                            .sum();
                         let after: f64 = held
                             .iter()
                             .zip(pred)
-                            .filter_map(|(s, p)| Some((s.r[c].as_ref()?, p[c].as_ref()?)))
-                            .flat_map(|(r, p)| r.iter().zip(p).map(|(a, b)| (a - b).powi(2)))
+                            .filter_map(|(s, p)| Some((s, s.r[c].as_ref()?, p[c].as_ref()?)))
+                            .flat_map(|(s, r, p)| {
+                                r.iter().zip(p).enumerate().map(move |(i, (a, b))| (s.weight(c, i) * (a - b)).powi(2))
+                            })
                             .sum();
                         (before - after) * w[c] * w[c]
                     };

@@ -41,6 +41,14 @@ pub struct Physics {
     pub drag_n_m: f64,
     pub rod_coulomb_n: f64,
     pub rod_static_n: f64,
+    /// Rod seal viscous friction (also inside `b_rot`), N·s/m.
+    pub rod_viscous_n_s_m: f64,
+    /// Structural damping across the axial compliance, N·s/m.
+    pub axial_damping_n_s_m: f64,
+    /// Screw inertia (inside `j_rot`), kg·m², and its bearings' viscous
+    /// friction (inside `b_rot`), N·m·s/rad.
+    pub j_screw: f64,
+    pub b_screw: f64,
     pub stribeck_m_s: f64,
     pub gravity: f64,
     pub tilt_deg: f64,
@@ -72,6 +80,10 @@ impl Physics {
             drag_n_m: p.screw.preload_drag_torque_n_m,
             rod_coulomb_n: p.rod.coulomb_friction_n,
             rod_static_n: p.rod.static_friction_n,
+            rod_viscous_n_s_m: p.rod.viscous_friction_n_s_m,
+            axial_damping_n_s_m: p.deformation.axial_damping_n_s_m,
+            j_screw: p.screw.inertia_kg_m2,
+            b_screw: p.screw.viscous_friction_n_m_s_rad,
             stribeck_m_s: p.rod.stribeck_velocity_m_s,
             gravity: p.load.gravity_m_s2,
             tilt_deg: p.load.initial_tilt_deg,
@@ -102,6 +114,47 @@ impl Physics {
         let rod =
             self.rod_coulomb_n + (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
         self.b_rot * omega + self.sgn(omega) * (self.drag_n_m + self.k * rod + self.mu * self.k * f_ax.abs())
+    }
+
+    /// The torsional path (coupling + screw twist to the nut) carries, on
+    /// top of the thread's `(L/2π) F` that `deflection` includes, the torque
+    /// that accelerates the screw and the nut's friction torque; its wind-up
+    /// puts the nut behind by `(L/2π) C_rot(x) (J_s α + T_f)`, m. `dir`: the
+    /// last direction of motion, holding the friction at rest (as the seal).
+    pub fn screw_wind_up_m(&self, omega: f64, alpha: f64, f_nut: f64, x: f64, dir: f64) -> f64 {
+        let moving = (omega / self.omega_eps).abs().tanh();
+        let s = moving * omega.signum() + (1.0 - moving) * dir;
+        let t_f = self.b_screw * omega + s * (self.drag_n_m + self.mu * self.k * f_nut.abs());
+        self.k * self.compliance.torsional_compliance_rad_per_n_m(x) * (self.j_screw * alpha + t_f)
+    }
+
+    /// Damping ratio of the rod's axial mode at local compliance `c` (m/N).
+    pub fn rod_damping_ratio(&self, c: f64) -> f64 {
+        0.5 * self.axial_damping_n_s_m * (c / self.m_moving).sqrt()
+    }
+
+    /// The rod seal's friction force at rod speed `v`, which the nut
+    /// carries on top of load and inertia (so it deflects the drive train).
+    /// At rest the seal holds the force the last motion (`dir`, ±1) left
+    /// in it; moving, it is the nominal law. Returns (force, weight of the
+    /// moving law in [0, 1]).
+    pub fn rod_friction_n(&self, v: f64, dir: f64) -> (f64, f64) {
+        let moving = (v / (self.k * self.omega_eps)).abs().tanh();
+        let s = moving * v.signum() + (1.0 - moving) * dir;
+        let stribeck = (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
+        (self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck, moving)
+    }
+
+    /// Motor torque the nominal model needs for (ω, α) with the nut carrying
+    /// `f_nut` (load + the rod's own inertia + seal friction): rotor and
+    /// screw inertia, the thread, bearing viscous friction, the nut's drag
+    /// and its load-proportional (efficiency) friction.
+    pub fn required_torque_nut(&self, omega: f64, alpha: f64, f_nut: f64) -> f64 {
+        let b_bearings = self.b_rot - self.rod_viscous_n_s_m * self.k * self.k;
+        self.j_rot * alpha
+            + self.k * f_nut
+            + b_bearings * omega
+            + self.sgn(omega) * (self.drag_n_m + self.mu * self.k * f_nut.abs())
     }
 
     /// Motor torque the nominal model needs for (ω, α) under load `f_load`.
@@ -174,7 +227,11 @@ pub struct Segment {
     /// Reference speed and acceleration (measured ones without a reference).
     pub v_ref: Vec<f64>,
     pub a_ref: Vec<f64>,
-    /// Gravity + external load, N; axial force incl. inertia, N.
+    /// The rod's acceleration (and so its inertial force in `f_ax`) is the
+    /// scale's, not the motor side's: the rod mode and any ripple the
+    /// drive train passes on are measured, not modelled.
+    pub rod_from_scale: bool,
+    /// Gravity + external load, N; nut force (load, rod inertia, seal), N.
     pub f_load: Vec<f64>,
     pub f_ax: Vec<f64>,
     pub iq: Vec<f64>,
@@ -190,8 +247,20 @@ pub struct Segment {
     pub encoder: bool,
     /// Play (backlash) operator outputs minus input, divided by the play,
     /// for every play of `BACKLASH_GRID_M`, driven by the motor side (or the
-    /// reference, or the scale).
+    /// reference, or the scale). Regression nominal only.
     pub play: Vec<Vec<f64>>,
+    /// Physics nominal: `−½ flank`, the flank (±1) the rod rests on in a
+    /// lost motion, set by the sign of the nut force with a hold band
+    /// (see `flank_deviation`).
+    pub flank: Vec<f64>,
+    /// Weight of each sample in the torque and position channels (empty:
+    /// all 1). Physics nominal: near standstill the seal and screw hold
+    /// whatever friction the last motion left (statically indeterminate,
+    /// anything up to breakaway), which no friction law predicts; it sets
+    /// both the motor torque and the nut force that deflects the drive
+    /// train. Those samples are faded out of fitting and scoring:
+    /// `1 − e^{−(ω/ω_rest)²}`.
+    pub motion_weight: Vec<f64>,
     /// Savitzky–Golay half width and sample step of the differentiation.
     pub sg_m: usize,
     pub dt: f64,
@@ -210,6 +279,29 @@ pub fn play_deviation(x: &[f64], b: f64) -> Vec<f64> {
         .map(|&xi| {
             y = y.clamp(xi - 0.5 * b, xi + 0.5 * b);
             (y - xi) / b
+        })
+        .collect()
+}
+
+/// Lost motion with a known nut force: the rod rests on the flank the force
+/// pushes it against, `−½ flank` of the gap behind the screw. The flank
+/// turns when the force (load + inertia + the seal's sliding friction,
+/// given with the weight `moving` of the sliding law) leaves a hold band:
+/// at rest the seal's breakaway `f_hold` must be overcome to push the rod
+/// across the gap; sliding, only the sign counts. Without a load the
+/// force follows the motion and this is the play operator.
+pub fn flank_deviation(force: &[(f64, f64)], f_hold: f64) -> Vec<f64> {
+    let mut flank = force.first().map_or(1.0, |f| if f.0 < 0.0 { -1.0 } else { 1.0 });
+    force
+        .iter()
+        .map(|&(f, moving)| {
+            let band = (1.0 - moving) * f_hold;
+            if f > band {
+                flank = 1.0;
+            } else if f < -band {
+                flank = -1.0;
+            }
+            -0.5 * flank
         })
         .collect()
 }
@@ -240,7 +332,22 @@ pub fn sg_second_gain(m: usize, phi: f64) -> f64 {
     -num / (phi * phi)
 }
 
+/// Below this motor speed the torque and position channels fade out (see
+/// `Segment::motion_weight`), rad/s: 0.8 mm/s at the rod, under the nominal
+/// Stribeck speed.
+pub const STANDSTILL_RAD_S: f64 = 1.0;
+
 impl Segment {
+    /// Weight of sample i in channel c (fitting and scoring).
+    #[inline]
+    pub fn weight(&self, c: usize, i: usize) -> f64 {
+        if c == TORQUE || c == POSITION {
+            self.motion_weight.get(i).copied().unwrap_or(1.0)
+        } else {
+            1.0
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.t.len()
     }
@@ -326,7 +433,9 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         let tilt = get("tilt_deg").map(|v| &v[s..e]);
         let x_motor: Vec<f64> = theta_raw.iter().map(|th| x0 + k * th).collect();
         let xs: &[f64] = scale.unwrap_or(&x_motor);
-        let mut seg = Segment { run: run_idx, first_row: s + m, encoder, sg_m: m, dt, ..Default::default() };
+        let rod_from_scale = phys.is_some() && scale.is_some() && encoder;
+        let mut seg =
+            Segment { run: run_idx, first_row: s + m, encoder, rod_from_scale, sg_m: m, dt, ..Default::default() };
         let omega_max = (m..n - m).map(|i| sg(&theta_raw, i, m, dt).1.abs()).fold(0.0, f64::max);
         let omega_th = (0.05 * omega_max).max(1e-9);
         let mut dir = 1.0;
@@ -338,6 +447,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         let mut rp = Vec::new();
         let mut rv = Vec::new();
         let mut first = true;
+        let mut flank_force = Vec::new();
         for i in m..n - m {
             let (th, om, al) = sg(&theta_raw, i, m, dt);
             let (x, v, a) = if encoder || phys.is_some() { (x0 + k * th, k * om, k * al) } else { sg(xs, i, m, dt) };
@@ -358,10 +468,21 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             }
             let tilt_i = tilt.map_or(tilt_default_deg, |v| v[i]);
             let fext = f_ext.map_or(0.0, |v| v[i]);
+            // The rod's acceleration from the scale when it is logged next
+            // to an encoder (two bodies measured), else the motor side's.
+            let a_rod = match (phys, scale) {
+                (Some(_), Some(sc)) if encoder => sg(sc, i, m, dt).2,
+                _ => a,
+            };
             let (f_load, f_ax, c_loc) = match phys {
                 Some(p) => {
                     let fl = p.load_n(fext, tilt_i);
-                    let fa = fl + p.m_moving * a;
+                    let (f_seal, moving) = p.rod_friction_n(v, dir);
+                    let fa = fl + p.m_moving * a_rod + f_seal;
+                    // The flank is decided by the force without the seal's
+                    // held (static) part: a gap is crossed when load and
+                    // inertia beat the seal's breakaway (`flank_deviation`).
+                    flank_force.push((fl + p.m_moving * a_rod + moving * f_seal, moving));
                     (fl, fa, p.local_compliance(fa, x))
                 }
                 None => (fext, fext, 0.0),
@@ -399,7 +520,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (Nominal::Physics(p), Some(q)) => {
                     let y = p.kt * q.0;
                     yt.push(y);
-                    rt.push(y - p.required_torque(om, al, f_load));
+                    rt.push(y - p.required_torque_nut(om, al, f_ax));
                 }
                 (Nominal::Regression(r), Some(q)) => {
                     let f = reg_features(&seg, seg.v_ref.len() - 1, fext, r.v_eps);
@@ -412,7 +533,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (Nominal::Physics(p), Some(sc)) if encoder => {
                     let y = sc[i] - x_motor[i];
                     yp.push(y);
-                    rp.push(y + p.deflection(f_ax, x));
+                    rp.push(y + p.deflection(f_ax, x) + p.screw_wind_up_m(om, al, f_ax, x, dir));
                 }
                 (Nominal::Regression(r), Some(sc)) => {
                     let Some(re) = reference else { continue };
@@ -443,7 +564,13 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 }
             })
             .collect();
-        seg.play = backlash_grid_m().into_iter().map(|b| play_deviation(&drive, b)).collect();
+        match phys {
+            Some(p) => {
+                seg.flank = flank_deviation(&flank_force, p.rod_static_n);
+                seg.motion_weight = seg.omega.iter().map(|w| 1.0 - (-(w / STANDSTILL_RAD_S).powi(2)).exp()).collect();
+            }
+            None => seg.play = backlash_grid_m().into_iter().map(|b| play_deviation(&drive, b)).collect(),
+        }
         for (c, (y, r)) in [(yt, rt), (yp, rp), (yv, rv)].into_iter().enumerate() {
             if y.len() == nn && nn > 0 {
                 seg.y[c] = Some(y);

@@ -16,6 +16,7 @@
 //! whole rotor-to-nut twist (coupling + δθ5) is one spring.
 
 use super::deformation::Compliance;
+use super::effects::EffectDynamics;
 use super::friction::{RodFriction, ScrewFriction};
 use super::frames;
 use super::inverter::{self, Drive};
@@ -98,6 +99,8 @@ pub struct Model {
     pub stop_hi: f64,
     pub k_stop: f64,
     pub c_stop: f64,
+    /// Unmodelled effects of a truth rig (`effects.rs`); none by default.
+    pub fx: EffectDynamics,
 }
 
 impl Model {
@@ -121,12 +124,13 @@ impl Model {
             stop_hi: p.stroke.extended_stop_m,
             k_stop: p.stroke.stop_stiffness_n_m,
             c_stop: p.stroke.stop_damping_n_s_m,
+            fx: EffectDynamics::default(),
         }
     }
 
     /// Axial load from gravity along the cylinder and an external force.
     pub fn load_force_n(&self, tilt_rad: f64, external_force_n: f64) -> f64 {
-        self.mass * self.gravity * tilt_rad.sin() + external_force_n
+        self.mass * self.gravity * tilt_rad.sin() + external_force_n + self.fx.load_offset
     }
 
     /// Motor-side position `x0 + L θ_m/2π`.
@@ -149,7 +153,10 @@ impl Model {
             (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
         let (sin_e, cos_e) = (self.motor.pole_pairs * th_m).sin_cos();
         let (u_d, u_q) = match (inp.drive, inp.open_phase) {
-            (Drive::Pwm(duty), None) => frames::abc_to_dq(inverter::pwm_phase_voltages(duty, inp.bus_v), sin_e, cos_e),
+            (Drive::Pwm(duty), None) => {
+                let u = inverter::pwm_phase_voltages(duty, inp.bus_v);
+                frames::abc_to_dq(self.fx.dead_time(u, i_d, i_q, sin_e, cos_e, inp.bus_v), sin_e, cos_e)
+            }
             (Drive::Pwm(duty), Some(k)) => {
                 let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
                 frames::abc_to_dq(inverter::pwm_phase_voltages_open(duty, inp.bus_v, e_abc, k), sin_e, cos_e)
@@ -166,12 +173,19 @@ impl Model {
         let torsion_spring_torque = (th_m - th_s) / torsional_compliance;
         let coupling_torque = torsion_spring_torque + self.c_rot * (w_m - w_s);
 
-        let screw_position = self.origin_m + self.metres_per_rad * th_s;
-        let axial_spring_force = self.compliance.axial_force_n(screw_position - x, x, *force_guess);
+        // `ratio` = dx_s/dθ_s: L/2π, unless a lead error bends the thread.
+        let (screw_position, ratio) = self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
+        let axial_spring_force = match self.fx.engaged_deflection(screw_position - x) {
+            Some(d) => self.compliance.axial_force_n(d, x, *force_guess),
+            None => 0.0,
+        };
         *force_guess = axial_spring_force;
-        let axial_force = axial_spring_force + self.c_ax * (self.metres_per_rad * w_s - v);
+        let mut axial_force = axial_spring_force + self.c_ax * (ratio * w_s - v);
+        if self.fx.has_gap() {
+            axial_force = self.fx.contact_force(axial_spring_force, axial_force);
+        }
 
-        let screw_friction_torque = self.screw_friction.torque_n_m(w_s, axial_force);
+        let screw_friction_torque = self.screw_friction.torque_n_m(w_s, axial_force) + self.fx.screw_friction_n_m(w_s);
         let rod_friction_force = self.rod_friction.force_n(v);
         let (stop_force, stop_elastic_force, stop_penetration) = self.stop_force(x, v);
 
@@ -179,9 +193,10 @@ impl Model {
             di_d,
             di_q,
             w_m,
-            (motor_torque - coupling_torque - self.b_m * w_m + inp.brake.torque_n_m(th_m, w_m)) / self.j_m,
+            (motor_torque - coupling_torque - self.b_m * w_m - self.fx.cogging_n_m(th_m) + inp.brake.torque_n_m(th_m, w_m))
+                / self.j_m,
             w_s,
-            (coupling_torque - self.metres_per_rad * axial_force - screw_friction_torque) / self.j_s,
+            (coupling_torque - ratio * axial_force - screw_friction_torque) / self.j_s,
             v,
             (axial_force - inp.load_force_n - rod_friction_force + stop_force) / self.mass,
         ];
@@ -228,15 +243,17 @@ impl Model {
     /// screw, and the motor holds `T` with `i_q = T/(1.5 p ψ_f)`, `i_d = 0`.
     /// End stops are ignored (start inside the stroke).
     pub fn equilibrium(&self, theta_m: f64, load_force_n: f64) -> StateVec {
-        let torque = self.metres_per_rad * load_force_n;
+        // The thread's slope dx_s/dθ_s (L/2π without a lead error).
+        let (_, ratio) = self.fx.thread(0.0, self.metres_per_rad, theta_m);
+        let torque = ratio * load_force_n;
         let mut x = self.motor_side_position_m(theta_m);
         let mut theta_s = theta_m;
         // The stroke-dependent terms depend on x itself; the map contracts by
         // ~F/(E A) ≈ 1e-4 per pass, so a few passes reach machine precision.
         for _ in 0..8 {
             theta_s = theta_m - torque * self.compliance.torsional_compliance_rad_per_n_m(x);
-            let x_s = self.origin_m + self.metres_per_rad * theta_s;
-            x = x_s - self.compliance.axial_deflection_m(load_force_n, x);
+            let (x_s, _) = self.fx.thread(self.origin_m + self.metres_per_rad * theta_s, self.metres_per_rad, theta_s);
+            x = x_s - self.compliance.axial_deflection_m(load_force_n, x) - self.fx.gap_offset_m(load_force_n);
         }
         let i_q = torque / (1.5 * self.motor.pole_pairs * self.motor.flux_wb);
         [0.0, i_q, theta_m, 0.0, theta_s, 0.0, x, 0.0]

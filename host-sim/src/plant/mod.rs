@@ -13,6 +13,7 @@
 
 pub mod brake;
 pub mod deformation;
+pub mod effects;
 pub mod frames;
 pub mod friction;
 pub mod integrator;
@@ -26,6 +27,7 @@ pub mod sensors;
 use servo_core::{PwmCommand, SensorSample};
 
 pub use deformation::{Compliance, Deflection};
+pub use effects::UnmodelledEffects;
 pub use inverter::{Drive, Leg};
 pub use mechanics::{EnergyAudit, StateVec};
 pub use params::PlantParams;
@@ -105,6 +107,8 @@ pub struct Plant {
     brake: brake::Brake,
     sensors: sensors::Sensors,
     state: PlantState,
+    /// Unmodelled effects of a truth rig (none by default).
+    effects: UnmodelledEffects,
 }
 
 impl Plant {
@@ -140,6 +144,7 @@ impl Plant {
             open_phase: None,
             brake: brake::Brake::new(&params.brake),
             state: PlantState::default(),
+            effects: UnmodelledEffects::default(),
             params,
         };
         plant.set_initial_state(0.0, tilt);
@@ -164,6 +169,36 @@ impl Plant {
         let bus = self.bus_v.max(f64::MIN_POSITIVE);
         self.drive = Drive::Pwm(std::array::from_fn(|k| 0.5 + u[k] / bus));
         self.refresh_state();
+    }
+
+    /// A truth rig: the nominal `params` with `effects` (see `effects.rs`).
+    /// The parameter-type effects change `params()`; the others act in
+    /// the right-hand side and the sensors. Starts at rest as `new`.
+    pub fn with_effects(params: PlantParams, effects: UnmodelledEffects, seed: u64) -> Result<Plant, ParamError> {
+        let mut p = params;
+        effects.apply_to_params(&mut p);
+        let mut plant = Self::try_new(p, seed)?;
+        plant.model.fx = effects.dynamics(&plant.params);
+        plant.effects = effects;
+        plant.update_effects();
+        let tilt = plant.tilt_rad;
+        plant.set_initial_state(0.0, tilt);
+        Ok(plant)
+    }
+
+    /// The unmodelled effects (none for a nominal plant).
+    pub fn effects(&self) -> &UnmodelledEffects {
+        &self.effects
+    }
+
+    /// Time-varying effects (thermal strain, load disturbance) at the
+    /// present time, held through the next period.
+    fn update_effects(&mut self) {
+        let e = &self.effects;
+        if e.thermal_strain_per_s != 0.0 || e.load_offset_n != 0.0 || e.load_disturbance_n != 0.0 {
+            self.model.fx.thermal_strain = e.thermal_strain(self.time_s);
+            self.model.fx.load_offset = e.load_offset_n + e.load_disturbance(self.time_s);
+        }
     }
 
     pub fn set_tilt_rad(&mut self, tilt_rad: f64) {
@@ -218,6 +253,7 @@ impl Plant {
         assert!(bus_voltage_v.is_finite() && bus_voltage_v >= 0.0, "advance: bus voltage {bus_voltage_v} V");
         self.bus_v = bus_voltage_v;
         let duty = duty.map(|d| self.saturate_duties(d));
+        self.update_effects();
         let load = self.model.load_force_n(self.tilt_rad, self.external_force_n);
         self.drive = self.drive_for(duty, bus_voltage_v);
         if duration_s > 0.0 {
@@ -268,8 +304,8 @@ impl Plant {
     /// Sensors at this instant (noise and quantisation drawn from the seed).
     pub fn sample(&mut self) -> SensorSample {
         let truth = sensors::Truth {
-            phase_current_a: self.state.phase_current_a,
-            theta_m_rad: self.x[THETA_M],
+            phase_current_a: self.effects.sensed_currents(self.state.phase_current_a),
+            theta_m_rad: self.effects.encoder_angle(self.x[THETA_M]),
             bus_voltage_v: self.bus_v,
             rod_position_m: self.x[X_ROD],
             load_cell_force_n: self.state.load_cell_force_n,

@@ -1,6 +1,7 @@
 //! Scenarios: what the closed loop is asked to do, and what it recorded.
 
 pub mod dataset;
+pub mod identification;
 pub mod stroke_cycle;
 
 pub use stroke_cycle::{run_stroke_cycle, Direction, RunTrace, StrokeCycle};
