@@ -362,7 +362,7 @@ impl Controller {
 
     /// True while the brake is (being) held open: a planned move waits for
     /// `brake.release_time_s` after `Enable`.
-    pub fn brake_opening(&self) -> bool {
+    fn brake_opening(&self) -> bool {
         self.params.brake.fitted && self.mode == Mode::Running && self.brake_periods < self.derived.brake_release_periods
     }
 
