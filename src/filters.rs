@@ -50,6 +50,13 @@ impl Biquad {
         self.z2 = 0.0;
     }
 
+    /// The state a constant input `x` leaves behind (output `x`): a filter
+    /// preloaded this way starts without a transient.
+    pub fn preset(&mut self, x: f32) {
+        self.z1 = x * (1.0 - self.b0);
+        self.z2 = x * (self.b2 - self.a2);
+    }
+
     pub fn update(&mut self, x: f32) -> f32 {
         let y = self.b0 * x + self.z1;
         self.z1 = self.b1 * x - self.a1 * y + self.z2;

@@ -20,6 +20,10 @@ pub struct SensorSample {
     /// Axial force from a load cell, newtons (positive = compressive load the
     /// cylinder pushes against), if fitted.
     pub load_cell_force_n: Option<f32>,
+    /// Home switch, closed = true, if one is wired.
+    pub home_switch: Option<bool>,
+    /// Power-stage (heat-sink) temperature, °C, if measured.
+    pub power_stage_temperature_c: Option<f32>,
 }
 
 impl SensorSample {
@@ -32,6 +36,8 @@ impl SensorSample {
             bus_voltage_v,
             terminal_position_m: None,
             load_cell_force_n: None,
+            home_switch: None,
+            power_stage_temperature_c: None,
         }
     }
 }

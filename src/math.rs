@@ -185,3 +185,10 @@ pub fn wrap_pi(angle_rad: f32) -> f32 {
     let turns = floor((angle_rad + PI) * (0.5 / PI));
     angle_rad - turns * (2.0 * PI)
 }
+
+/// Four-quadrant arctangent (libm's `atan2f`, all in `f32`); used off the
+/// 20 kHz path only (commutation fit).
+#[inline]
+pub fn atan2(y: f32, x: f32) -> f32 {
+    libm::atan2f(y, x)
+}

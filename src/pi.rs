@@ -25,6 +25,11 @@ impl Pi {
         self.integral = 0.0;
     }
 
+    /// Starts the integrator at `value` (bumpless start on a known load).
+    pub fn preset(&mut self, value: f32) {
+        self.integral = value;
+    }
+
     pub fn integral(&self) -> f32 {
         self.integral
     }

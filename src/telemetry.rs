@@ -1,6 +1,7 @@
 //! The telemetry record: one struct, logged by the firmware through defmt and
 //! written by the simulator as a CSV row, so both carry the same named fields.
 
+use crate::lifecycle::Readiness;
 use crate::protection::{FaultSet, LimitFlags};
 
 /// What the drive is doing.
@@ -11,8 +12,13 @@ pub enum Mode {
     /// Bridge off, loops reset, encoder still tracked.
     #[default]
     Disabled,
-    /// Locking the rotor on a d-axis current to find the electrical offset.
+    /// Current-offset calibration, bridge off.
+    Calibrating,
+    /// Commutation: the electrical offset found with the brake holding the
+    /// load, then direction and pole pairs checked (`lifecycle::commutation`).
     Aligning,
+    /// Homing: closed loop towards the end stop or switch, bounded current.
+    Homing,
     /// Position control.
     Running,
     /// A controlled-stop fault latched: decelerating, then holding, bridge on.
@@ -58,4 +64,6 @@ pub struct Telemetry {
     pub load_force_estimate_n: f32,
     pub faults: FaultSet,
     pub limits: LimitFlags,
+    /// Start-up steps done (calibrated, commutated, homed).
+    pub readiness: Readiness,
 }

@@ -34,6 +34,8 @@ fn synthetic_sample(k: u32) -> SensorSample {
         bus_voltage_v: BUS_V + 0.5 * libm::sinf(0.37 * phase),
         terminal_position_m: None,
         load_cell_force_n: None,
+        home_switch: None,
+        power_stage_temperature_c: None,
     }
 }
 
@@ -41,7 +43,7 @@ fn synthetic_sample(k: u32) -> SensorSample {
 /// a nominal synthetic sequence: the bridge stays on, every duty is finite
 /// and in [0, 1], and nothing faults.
 fn closed_loop_smoke_nominal_inputs() -> Outcome {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     check!(c.faults().is_empty(), "{:?}", c.faults());
     check!(c.mode() == Mode::Disabled, "{:?}", c.mode());
     // One sample first so the encoder tracker has its starting count.
@@ -76,7 +78,7 @@ fn closed_loop_smoke_nominal_inputs() -> Outcome {
 /// DESIGN §3: a fault switches the bridge off at once and stays latched
 /// until an explicit clear finds its cause gone.
 fn fault_latches_until_cleared() -> Outcome {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     let nominal = SensorSample::idle(BUS_V);
     c.step(&nominal);
     check!(c.command(Command::Enable).is_ok());
@@ -127,7 +129,7 @@ fn fault_latches_until_cleared() -> Outcome {
 
 /// NaN in a sample: bridge off, finite duties, `NON_FINITE_INPUT` latched.
 fn non_finite_sample_turns_bridge_off() -> Outcome {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     let nominal = SensorSample::idle(BUS_V);
     c.step(&nominal);
     check!(c.command(Command::Enable).is_ok());
@@ -148,7 +150,7 @@ fn invalid_params_never_enable() -> Outcome {
     let mut p = ControlParams::DEFAULT;
     p.motor.inductance_q_h = -1.0;
     check!(Controller::try_new(p).is_err());
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     check!(
         c.faults().contains(FaultSet::INVALID_PARAMS),
         "{:?}",
@@ -170,7 +172,7 @@ fn encoder_wraps_without_fault() -> Outcome {
     let step = 20i32; // counts per 50 µs period: 400 000 counts/s = 2400 rpm
     let periods = 4000i32; // 80 000 counts: the counter wraps at least once
     for (start_raw, dir, home_m) in [(65_000u16, 1i32, 0.0f32), (100u16, -1i32, 0.25f32)] {
-        let mut c = Controller::new(p);
+        let mut c = Controller::new(p.commissioned());
         c.step(&SensorSample {
             encoder_count: start_raw,
             ..SensorSample::idle(BUS_V)
@@ -218,7 +220,7 @@ fn encoder_wraps_without_fault() -> Outcome {
 fn closed_loop_move_on_rigid_plant() -> Outcome {
     let p = ControlParams::DEFAULT;
     let mut plant = RigidPlant::new(p, BUS_V);
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     c.step(&plant.sample());
     let home_m = 0.1;
     let r = c.command(Command::SetHome { position_m: home_m });

@@ -144,6 +144,11 @@ impl ClosedLoop {
     pub fn step_with(&mut self, corrupt: impl FnOnce(&mut SensorSample)) -> Telemetry {
         let mut sample = self.plant.sample();
         self.sampled_state.clone_from(self.plant.state());
+        // The board subtracts the offsets the core's calibration measured.
+        let offsets = self.controller.current_offsets_a();
+        for (i, o) in sample.phase_current_a.iter_mut().zip(offsets) {
+            *i -= o;
+        }
         corrupt(&mut sample);
         // The board's ISR reads the timer's break flag before the step.
         if self.hardware_break_period.is_some() {

@@ -18,7 +18,7 @@ fn invalid_params_are_named_and_never_enable() {
     p.speed_pi.kp = -1.0;
     let e = Controller::try_new(p).unwrap_err();
     assert_eq!(e.field, "control.speed_pi.kp");
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     assert!(c.faults().contains(FaultSet::INVALID_PARAMS));
     assert!(matches!(c.command(Command::Enable), Err(CommandError::Faulted(_))));
     assert!(matches!(c.command(Command::ClearFaults), Err(CommandError::CauseStillPresent(_))));
@@ -44,7 +44,7 @@ fn each_bad_field_is_named() {
 
 #[test]
 fn nan_current_latches_and_turns_the_bridge_off_until_cleared() {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     c.command(Command::Enable).unwrap();
     assert!(c.step(&nominal()).enable);
     let mut bad = nominal();
@@ -76,7 +76,7 @@ fn overcurrent_and_bus_faults_latch() {
         (SensorSample { bus_voltage_v: p.faults.bus_undervoltage_v - 1.0, ..nominal() }, FaultSet::BUS_UNDERVOLTAGE),
     ];
     for (sample, fault) in cases {
-        let mut c = Controller::new(p);
+        let mut c = Controller::new(p.commissioned());
         c.command(Command::Enable).unwrap();
         c.step(&nominal());
         let out = c.step(&sample);
@@ -99,7 +99,7 @@ fn overcurrent_and_bus_faults_latch() {
 
 #[test]
 fn move_outside_the_stroke_is_clamped_and_reported() {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     c.command(Command::Enable).unwrap();
     c.step(&nominal());
     let out = c.command(Command::MoveTo { position_m: 0.8 }).unwrap();
@@ -115,7 +115,7 @@ fn move_outside_the_stroke_is_clamped_and_reported() {
 #[test]
 fn telemetry_is_cut_at_the_position_rate() {
     let p = ControlParams::DEFAULT;
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     for _ in 0..p.rates.position_loop_divider * 3 {
         c.step(&nominal());
     }

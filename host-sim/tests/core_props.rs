@@ -111,7 +111,7 @@ fn telemetry_finite(t: &Telemetry) -> Result<(), String> {
 /// Runs a sequence and checks every property after every period.
 fn check_sequence(start_count: u16, periods: &[Period], all_finite: bool) -> Result<(), TestCaseError> {
     let p = ControlParams::DEFAULT;
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     // Start the way the firmware does: homed inside the stroke, enabled.
     let _ = c.command(Command::SetHome { position_m: 0.25 });
     let _ = c.command(Command::Enable);
@@ -137,6 +137,8 @@ fn check_sequence(start_count: u16, periods: &[Period], all_finite: bool) -> Res
             bus_voltage_v: per.bus_v,
             terminal_position_m: per.terminal_m,
             load_cell_force_n: per.load_n,
+            home_switch: None,
+            power_stage_temperature_c: None,
         };
         let out = c.step(&s);
         for d in out.duty {

@@ -16,7 +16,7 @@ use servo_core::{Command, ControlParams, Controller, FaultSet, Mode};
 fn holding_at_250_mm(rig: &RigConfig) -> ClosedLoop {
     let mut plant = Plant::new(rig.plant.clone(), 1);
     plant.set_initial_state(0.25 * TAU / rig.plant.screw.lead_m, FRAC_PI_2);
-    let mut c = Controller::try_new(rig.control).unwrap();
+    let mut c = Controller::try_new(rig.control.commissioned()).unwrap();
     c.command(Command::SetHome { position_m: 0.25 }).unwrap();
     let mut cl = ClosedLoop::new(c, plant, 48.0);
     cl.controller.command(Command::Enable).unwrap();

@@ -46,7 +46,7 @@ fn without_the_comparator_a_hung_isr_is_unbounded_for_the_watchdog_timeout() {
 
 #[test]
 fn after_a_watchdog_reset_the_drive_waits_for_an_explicit_clear() {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     c.report_watchdog_reset();
     assert_eq!(c.mode(), Mode::Fault);
     assert!(matches!(c.command(Command::Enable), Err(CommandError::Faulted(f)) if f == FaultSet::WATCHDOG_RESET));

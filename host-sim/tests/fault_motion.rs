@@ -76,7 +76,7 @@ fn thermal_overload_keeps_the_stroke() {
 #[test]
 fn motor_overtemp_latches_at_the_closed_form_time() {
     let p = ControlParams::DEFAULT;
-    let mut c = Controller::new(p);
+    let mut c = Controller::new(p.commissioned());
     c.command(Command::Enable).unwrap();
     let sample = SensorSample { phase_current_a: [20.0, -10.0, -10.0], ..SensorSample::idle(48.0) };
     let dt = f64::from(p.pwm_period_s());
@@ -113,7 +113,7 @@ fn motor_overtemp_latches_at_the_closed_form_time() {
 }
 
 fn tripped_hot() -> Controller {
-    let mut c = Controller::new(ControlParams::DEFAULT);
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     c.command(Command::Enable).unwrap();
     let hot = SensorSample { phase_current_a: [20.0, -10.0, -10.0], ..SensorSample::idle(48.0) };
     while c.faults().is_empty() {

@@ -30,7 +30,15 @@ impl SpeedLoop {
         self.torque_filter.reset();
     }
 
-    /// `current_limit_a` is the q-axis share of the current circle;
+    /// Starts the loop already delivering `current_q_a` at rest: the hold
+    /// current is there before the brake lets go.
+    pub fn preload(&mut self, current_q_a: f32) {
+        self.pi.preset(current_q_a);
+        self.torque_filter.preset(current_q_a);
+    }
+
+    /// `[current_min_a, current_max_a]` is the q-axis share of the current
+    /// circle, narrowed where regeneration or homing bound one side;
     /// `friction_ff_n_m` comes from [`friction_feedforward_n_m`].
     pub fn step(
         &mut self,
@@ -39,7 +47,8 @@ impl SpeedLoop {
         acceleration_reference_rad_s2: f32,
         friction_ff_n_m: f32,
         speed_measured_rad_s: f32,
-        current_limit_a: f32,
+        current_min_a: f32,
+        current_max_a: f32,
     ) -> SpeedLoopOutput {
         let torque_ff = p.reflected_inertia_kg_m2() * acceleration_reference_rad_s2
             + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s
@@ -49,13 +58,13 @@ impl SpeedLoop {
             &p.speed_pi,
             speed_reference_rad_s - speed_measured_rad_s,
             ff_a,
-            -current_limit_a,
-            current_limit_a,
+            current_min_a,
+            current_max_a,
             p.speed_period_s(),
         );
         // The filter sits after the limit, so its output can overshoot the
         // bound only by the filter's 4 % step overshoot; clamp that too.
-        let filtered = crate::math::clamp(self.torque_filter.update(out.value), -current_limit_a, current_limit_a);
+        let filtered = crate::math::clamp(self.torque_filter.update(out.value), current_min_a, current_max_a);
         SpeedLoopOutput { current_q_reference_a: filtered, current_limited: out.saturated }
     }
 }

@@ -57,6 +57,28 @@ impl FaultSet {
     /// present current limit gives less torque than the brake holds.
     /// Escalates to the bridge off with the holding brake engaged.
     pub const STOP_FAILED: Self = Self(1 << 18);
+    /// Current-offset calibration: an offset or the noise beyond its bound,
+    /// or the bus moved during the average (a sagging supply).
+    pub const CALIBRATION_FAILED: Self = Self(1 << 19);
+    /// Commutation: the brake-held rotor showed no twist under the test
+    /// torque (encoder unplugged, or no signal).
+    pub const ENCODER_NO_SIGNAL: Self = Self(1 << 20);
+    /// The brake let the shaft turn further than its disc can twist: it
+    /// slipped under the commutation test torque or the load alone.
+    pub const BRAKE_SLIP: Self = Self(1 << 21);
+    /// The check rotation went the other way: encoder direction or phase
+    /// order reversed.
+    pub const WRONG_DIRECTION: Self = Self(1 << 22);
+    /// The check rotation's size disagrees with `motor.pole_pairs`.
+    pub const WRONG_POLE_PAIRS: Self = Self(1 << 23);
+    /// The rotor did not follow the check rotation: blocked.
+    pub const ROTOR_BLOCKED: Self = Self(1 << 24);
+    /// Homing met neither the stop nor the switch within its travel.
+    pub const HOMING_FAILED: Self = Self(1 << 25);
+    /// A start-up step ran past its time bound, or its rotor never settled.
+    pub const LIFECYCLE_TIMEOUT: Self = Self(1 << 26);
+    /// Power-stage temperature at `power_stage.temperature_trip_c`.
+    pub const POWER_STAGE_OVERTEMP: Self = Self(1 << 27);
 
     /// Faults whose reaction is a controlled stop, not switching off. The
     /// motor, its sensors and the bridge still work (with an open phase, two
@@ -70,11 +92,25 @@ impl FaultSet {
             | Self::SPEED_FOLLOWING.0
             | Self::SOFT_LIMIT.0
             | Self::OBSERVER_OUT_OF_BOUNDS.0
-            | Self::OPEN_PHASE.0,
+            | Self::OPEN_PHASE.0
+            | Self::HOMING_FAILED.0,
+    );
+
+    /// Faults a start-up step raises: the step is refused for good (until
+    /// cleared), never enabled around.
+    pub const LIFECYCLE: Self = Self(
+        Self::CALIBRATION_FAILED.0
+            | Self::ENCODER_NO_SIGNAL.0
+            | Self::BRAKE_SLIP.0
+            | Self::WRONG_DIRECTION.0
+            | Self::WRONG_POLE_PAIRS.0
+            | Self::ROTOR_BLOCKED.0
+            | Self::HOMING_FAILED.0
+            | Self::LIFECYCLE_TIMEOUT.0,
     );
 
     /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 19] = [
+    pub const ALL: [(Self, &'static str); 28] = [
         (Self::OVERCURRENT, "overcurrent"),
         (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
         (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
@@ -94,6 +130,15 @@ impl FaultSet {
         (Self::OPEN_PHASE, "open_phase"),
         (Self::BRIDGE_BREAK, "bridge_break"),
         (Self::STOP_FAILED, "stop_failed"),
+        (Self::CALIBRATION_FAILED, "calibration_failed"),
+        (Self::ENCODER_NO_SIGNAL, "encoder_no_signal"),
+        (Self::BRAKE_SLIP, "brake_slip"),
+        (Self::WRONG_DIRECTION, "wrong_direction"),
+        (Self::WRONG_POLE_PAIRS, "wrong_pole_pairs"),
+        (Self::ROTOR_BLOCKED, "rotor_blocked"),
+        (Self::HOMING_FAILED, "homing_failed"),
+        (Self::LIFECYCLE_TIMEOUT, "lifecycle_timeout"),
+        (Self::POWER_STAGE_OVERTEMP, "power_stage_overtemp"),
     ];
 
     pub const fn is_empty(self) -> bool {
@@ -114,6 +159,10 @@ impl FaultSet {
 
     pub const fn bits(self) -> u32 {
         self.0
+    }
+
+    pub const fn intersects(self, other: Self) -> bool {
+        self.0 & other.0 != 0
     }
 
     pub const fn intersection(self, other: Self) -> Self {

@@ -23,6 +23,9 @@ impl LimitFlags {
     pub const COMPENSATION: Self = Self(1 << 5);
     /// An observer input lay outside the trained range and was clamped.
     pub const OBSERVER_INPUT: Self = Self(1 << 6);
+    /// The bus rose: the speed was bounded so the load gives back less
+    /// power than `power_stage.regen_power_max_w` allows.
+    pub const REGEN: Self = Self(1 << 7);
 
     pub fn insert(&mut self, other: Self) {
         self.0 |= other.0;

@@ -327,6 +327,8 @@ impl ClosedLoop {
             bus_voltage_v: f(i[4]),
             terminal_position_m: None,
             load_cell_force_n: None,
+            home_switch: None,
+            power_stage_temperature_c: None,
         }
     }
 
@@ -369,7 +371,7 @@ impl Family for ClosedLoop {
 
     fn new() -> Self {
         Self {
-            c: Controller::new(ControlParams::DEFAULT),
+            c: Controller::new(ControlParams::DEFAULT.commissioned()),
         }
     }
 

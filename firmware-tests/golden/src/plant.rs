@@ -55,6 +55,8 @@ impl RigidPlant {
             bus_voltage_v: self.bus_voltage_v,
             terminal_position_m: None,
             load_cell_force_n: None,
+            home_switch: None,
+            power_stage_temperature_c: None,
         }
     }
 

@@ -71,7 +71,7 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
         control.trajectory.max_acceleration_m_s2 =
             (amax as f32).clamp(0.05, 2.0 * control.trajectory.max_acceleration_m_s2);
     }
-    let controller = Controller::try_new(control).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
+    let controller = Controller::try_new(control.commissioned()).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut plant = Plant::new(rig.plant.clone(), 1);
     let x0 = rig.plant.stroke.initial_position_m;
     let k = rig.plant.screw.lead_m / std::f64::consts::TAU;

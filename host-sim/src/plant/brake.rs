@@ -83,6 +83,15 @@ impl Brake {
         self.engaged
     }
 
+    /// Coil off and the disc already holding at `theta_rad` (a drive found
+    /// switched off, its load hanging on the brake).
+    pub fn engage_now(&mut self, theta_rad: f64) {
+        self.coil_on = false;
+        self.since_change_s = f64::INFINITY;
+        self.engaged = self.p.fitted;
+        self.anchor_rad = theta_rad;
+    }
+
     /// The drive's brake output for the coming period.
     pub fn command(&mut self, coil_on: bool) {
         if coil_on != self.coil_on {

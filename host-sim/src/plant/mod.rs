@@ -317,6 +317,23 @@ impl Plant {
         &self.state
     }
 
+    /// The bench's sensor facts (encoder zero, current bias, home switch,
+    /// heat-sink temperature): none by default.
+    pub fn bench_sensors_mut(&mut self) -> &mut sensors::BenchSensors {
+        &mut self.sensors.bench
+    }
+
+    /// Puts the holding brake's disc on (coil off) at the present angle, as
+    /// a drive that was switched off leaves it.
+    pub fn engage_brake(&mut self) {
+        self.brake.engage_now(self.x[THETA_M]);
+    }
+
+    /// True while the brake's disc holds.
+    pub fn brake_engaged(&self) -> bool {
+        self.brake.engaged()
+    }
+
     pub fn params(&self) -> &PlantParams {
         &self.params
     }

@@ -34,6 +34,24 @@ pub struct Sensors {
     max_code: f64,
     current_lsb: f64,
     bus_lsb: f64,
+    /// What a real board brings that an ideal one does not (all off by
+    /// default, so the nominal runs are unchanged):
+    pub bench: BenchSensors,
+}
+
+/// Sensor facts of a real bench that the start-up steps must cope with.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BenchSensors {
+    /// Mechanical angle the encoder's count zero sits at, radians: the
+    /// magnets and the encoder disc are mounted with no known relation.
+    pub encoder_zero_rad: f64,
+    /// Amplifier bias left over after the board's own zeroing, amperes.
+    pub current_offset_a: [f64; 3],
+    /// A home switch that closes while the rod is at or below (direction −1)
+    /// or at or above (+1) this position.
+    pub home_switch: Option<(f64, i32)>,
+    /// Heat-sink temperature reading, °C.
+    pub power_stage_temperature_c: Option<f64>,
 }
 
 impl Sensors {
@@ -45,6 +63,7 @@ impl Sensors {
             max_code: codes - 1.0,
             current_lsb: 2.0 * p.current_full_scale_a / codes,
             bus_lsb: p.bus_voltage_full_scale_v / codes,
+            bench: BenchSensors::default(),
         }
     }
 
@@ -71,7 +90,7 @@ impl Sensors {
     pub fn sample(&mut self, t: &Truth) -> SensorSample {
         let mut currents = [0f32; 3];
         for (k, out) in currents.iter_mut().enumerate() {
-            let noisy = t.phase_current_a[k] + self.noise(self.p.current_noise_a);
+            let noisy = t.phase_current_a[k] + self.bench.current_offset_a[k] + self.noise(self.p.current_noise_a);
             *out = self.bipolar(noisy, self.p.current_full_scale_a, self.current_lsb) as f32;
         }
         let bus = t.bus_voltage_v + self.noise(self.p.bus_voltage_noise_v);
@@ -87,10 +106,12 @@ impl Sensors {
         };
         SensorSample {
             phase_current_a: currents,
-            encoder_count: encoder_count(t.theta_m_rad, self.p.encoder_counts_per_rev),
+            encoder_count: encoder_count(t.theta_m_rad + self.bench.encoder_zero_rad, self.p.encoder_counts_per_rev),
             bus_voltage_v: (bus_code * self.bus_lsb) as f32,
             terminal_position_m: terminal,
             load_cell_force_n: load,
+            home_switch: self.bench.home_switch.map(|(at_m, dir)| (t.rod_position_m - at_m) * f64::from(dir) >= 0.0),
+            power_stage_temperature_c: self.bench.power_stage_temperature_c.map(|c| c as f32),
         }
     }
 }

@@ -108,7 +108,7 @@ pub fn run(rig: &RigConfig, effects: &UnmodelledEffects, exp: &Experiment, seed:
     let mut control = rig.control;
     control.trajectory.max_velocity_m_s = exp.max_velocity_m_s as f32;
     control.trajectory.max_acceleration_m_s2 = exp.max_acceleration_m_s2 as f32;
-    let controller = Controller::try_new(control).map_err(|e| anyhow!("control parameters: {e:?}"))?;
+    let controller = Controller::try_new(control.commissioned()).map_err(|e| anyhow!("control parameters: {e:?}"))?;
     let x0 = rig.plant.stroke.initial_position_m;
     let r = rig.plant.metres_per_rad();
     // Plant time starts with the settling; a warm-up counts from the log start.

@@ -81,7 +81,7 @@ enum Leg {
 
 /// Runs one cycle closed-loop through the control core.
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
-    let controller = Controller::try_new(rig.control).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
+    let controller = Controller::try_new(rig.control.commissioned()).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut plant_params = rig.plant.clone();
     plant_params.rod.payload_mass_kg *= cycle.payload_scale;
     let mut plant = Plant::new(plant_params, cycle.seed);

@@ -8,6 +8,10 @@
 
 use core::f32::consts::PI;
 
+mod lifecycle;
+mod validate;
+pub use lifecycle::*;
+
 #[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
@@ -189,6 +193,10 @@ pub struct BrakeParams {
     /// hands the load to the brake only when the brake is the stronger of
     /// the two (the motor's current limit may have folded back).
     pub holding_torque_n_m: f32,
+    /// `Enable` builds the holding torque (the hold current measured when
+    /// the brake last closed, or the expected load) this long with the brake
+    /// still closed, so the rod does not sag when it lets go.
+    pub preload_time_s: f32,
 }
 
 /// I²t winding protection: a first-order thermal model normalised to the
@@ -231,16 +239,6 @@ pub struct LoadEstimateParams {
     pub filter_hz: f32,
 }
 
-/// Rotor alignment: lock the rotor on a d-axis current at electrical angle
-/// zero and read the encoder there (incremental encoders lose the offset at
-/// every power-up).
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
-pub struct AlignmentParams {
-    pub current_a: f32,
-    pub duration_s: f32,
-}
-
 /// Terminal-error compensation by the observer (see `compensation`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
@@ -274,7 +272,11 @@ pub struct ControlParams {
     pub limits: LimitParams,
     pub faults: FaultParams,
     pub load_estimate: LoadEstimateParams,
-    pub alignment: AlignmentParams,
+    pub startup: StartupParams,
+    pub calibration: CalibrationParams,
+    pub commutation: CommutationParams,
+    pub homing: HomingParams,
+    pub power_stage: PowerStageParams,
     pub thermal: ThermalParams,
     pub ratings: RatingParams,
     pub compensation: CompensationParams,
@@ -325,6 +327,17 @@ impl ControlParams {
             self.limits.copper_power_max_w / (1.5 * self.motor.phase_resistance_ohm),
         );
         if copper < self.limits.current_max_a { copper } else { self.limits.current_max_a }
+    }
+
+    /// The same drive with its electrical offset and reference known at
+    /// power-up: an absolute encoder, or a drive already started up. The
+    /// simulator's experiments (paper run, data sets, fault scenarios)
+    /// start from here; the power-up suite does not.
+    pub const fn commissioned(self) -> Self {
+        let mut p = self;
+        p.startup.commutation_known = true;
+        p.startup.homed = true;
+        p
     }
 
     /// Metres of nut travel per motor radian, `L_s / 2π`.
@@ -451,9 +464,67 @@ impl ControlParams {
             open_phase_ratio: 0.2,
         },
         load_estimate: LoadEstimateParams { filter_hz: 5.0 },
-        // Rated current: enough torque to pull the rotor against the screw's
-        // friction, short enough not to heat it.
-        alignment: AlignmentParams { current_a: 12.0, duration_s: 0.5 },
+        // Nothing is known at power-up on an incremental encoder, and nothing
+        // moves until asked. The expected load is the rated thrust borne
+        // vertically (the payload behind `MOVING_MASS_KG`).
+        startup: StartupParams {
+            commutation_known: false,
+            homed: false,
+            expected_load_force_n: 1380.0,
+            run_at_power_up: false,
+        },
+        // 2 A is ≈ 70 ESC1 codes, a tenth of the amplifier's range; 1 A RMS
+        // is 35 codes of noise, ten times what a healthy channel shows.
+        calibration: CalibrationParams { duration_s: 0.1, offset_max_a: 2.0, noise_max_a: 1.0, bus_ripple_max_v: 2.0 },
+        // Reasons in `CommutationParams`. 0.03 rad of twist is 2.4× what
+        // the 2.5 N·m disc gives elastically (≈ 200 N·m/rad catalogue class):
+        // beyond it the disc slipped.
+        commutation: CommutationParams {
+            test_current_a: 8.0,
+            ramp_s: 0.05,
+            sweep_s: 0.5,
+            settle_s: 0.05,
+            settle_speed_rad_s: 0.5,
+            settle_timeout_s: 1.0,
+            min_amplitude_counts: 1.5,
+            max_twist_rad: 0.03,
+            hold_current_d_a: 15.0,
+            check_angle_rad: 20.0 * PI / 180.0,
+            check_time_s: 0.3,
+            ratio_tolerance: 0.15,
+            blocked_ratio: 0.3,
+            timeout_s: 5.0,
+        },
+        // Into the lower end stop (10 mm below stroke 0, `plant.stroke`),
+        // contact at home_position −0.010 m, then back to stroke 0 + 2 mm.
+        homing: HomingParams {
+            method: HomingMethod::HardStop,
+            direction: -1,
+            speed_m_s: 0.02,
+            current_max_a: 15.0,
+            contact_following_m: 0.0005,
+            contact_speed_rad_s: 0.5,
+            contact_time_s: 0.05,
+            home_position_m: -0.010,
+            backoff_m: 0.012,
+            travel_max_m: 0.53,
+            jog_speed_max_m_s: 0.01,
+        },
+        // A 48 V stage: fold back from 80 °C, trip at 100 °C (MOSFET
+        // junctions ≈ 25 K above the sink at rated current). Regeneration:
+        // the bus capacitors take what 54 → 58 V allows, below the 60 V trip;
+        // 50 W is what a bench supply with its own small sink may absorb.
+        // Back-EMF check: 20 rad/s is 80 rad/s electrical, 1.4 V of EMF, far
+        // above the dead-time voltage error at standstill current.
+        power_stage: PowerStageParams {
+            temperature_foldback_c: 80.0,
+            temperature_trip_c: 100.0,
+            regen_bus_start_v: 54.0,
+            regen_bus_max_v: 58.0,
+            regen_power_max_w: 50.0,
+            emf_speed_mismatch_rad_s: 20.0,
+            emf_mismatch_time_s: 0.004,
+        },
         // Rated torque 1.27 N·m at K_t = 0.105 → 12 A continuous. A 400 W
         // servo winding's thermal time constant is minutes; 30 s is on the
         // safe side and still allows 3× current for ≈3.5 s from cold.
@@ -474,7 +545,8 @@ impl ControlParams {
         compensation: CompensationParams { enabled_at_start: false, shift_max_m: 0.0015, shift_rate_max_m_s: 0.02 },
         // Catalogue class for a 2.5 N·m spring-applied servo brake (≈2× the
         // 1.1 N·m that holds rated thrust): 50 ms to open, 30 ms to close.
-        brake: BrakeParams { fitted: true, release_time_s: 0.05, engage_time_s: 0.03, holding_torque_n_m: 2.5 },
+        // Preload: 20 ms is eight speed-loop time constants at 40 Hz.
+        brake: BrakeParams { fitted: true, release_time_s: 0.05, engage_time_s: 0.03, holding_torque_n_m: 2.5, preload_time_s: 0.02 },
     };
 }
 
@@ -490,6 +562,9 @@ impl ControlParams {
         p.faults.bus_undervoltage_v = 18.0;
         p.limits.speed_max_rad_s = 2.0 * PI * 1500.0 / 60.0;
         p.trajectory.max_velocity_m_s = 0.1;
+        // Regeneration bounded between 25 and 27 V, under the 28 V trip.
+        p.power_stage.regen_bus_start_v = 25.0;
+        p.power_stage.regen_bus_max_v = 27.0;
         p
     };
 }
@@ -534,211 +609,3 @@ impl core::fmt::Display for ParamError {
     }
 }
 
-const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
-    if !v.is_finite() {
-        Err(ParamError { field, reason: "must be finite" })
-    } else if v <= 0.0 {
-        Err(ParamError { field, reason: "must be > 0" })
-    } else {
-        Ok(())
-    }
-}
-
-const fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
-    if !v.is_finite() {
-        Err(ParamError { field, reason: "must be finite" })
-    } else if v < 0.0 {
-        Err(ParamError { field, reason: "must be >= 0" })
-    } else {
-        Ok(())
-    }
-}
-
-const fn nonzero(field: &'static str, v: u32) -> Result<(), ParamError> {
-    if v == 0 { Err(ParamError { field, reason: "must be >= 1" }) } else { Ok(()) }
-}
-
-/// `?` for `const fn`s (the trait-based `?` is not const).
-macro_rules! check {
-    ($e:expr) => {
-        if let Err(e) = $e {
-            return Err(e);
-        }
-    };
-}
-
-impl ControlParams {
-    /// Refuses a parameter set the loops cannot run with, naming the field.
-    pub const fn validate(&self) -> Result<(), ParamError> {
-        let m = &self.motor;
-        check!(nonzero("control.motor.pole_pairs", m.pole_pairs));
-        check!(positive("control.motor.phase_resistance_ohm", m.phase_resistance_ohm));
-        check!(positive("control.motor.inductance_d_h", m.inductance_d_h));
-        check!(positive("control.motor.inductance_q_h", m.inductance_q_h));
-        check!(positive("control.motor.flux_linkage_wb", m.flux_linkage_wb));
-        let d = &self.drive_train;
-        check!(positive("control.drive_train.screw_lead_m", d.screw_lead_m));
-        check!(positive("control.drive_train.screw_efficiency", d.screw_efficiency));
-        if d.screw_efficiency > 1.0 {
-            return Err(ParamError { field: "control.drive_train.screw_efficiency", reason: "must be <= 1" });
-        }
-        check!(positive("control.drive_train.rotating_inertia_kg_m2", d.rotating_inertia_kg_m2));
-        check!(non_negative("control.drive_train.moving_mass_kg", d.moving_mass_kg));
-        check!(non_negative("control.drive_train.viscous_friction_n_m_s_rad", d.viscous_friction_n_m_s_rad));
-        check!(non_negative("control.drive_train.coulomb_friction_n_m", d.coulomb_friction_n_m));
-        check!(positive("control.drive_train.friction_feedforward_speed_rad_s", d.friction_feedforward_speed_rad_s));
-        check!(non_negative("control.drive_train.friction_feedforward_gain", d.friction_feedforward_gain));
-        if d.friction_feedforward_gain > 1.0 {
-            // Above the modelled friction the feedforward drives the rod
-            // ahead of its reference at every start.
-            return Err(ParamError { field: "control.drive_train.friction_feedforward_gain", reason: "must be <= 1" });
-        }
-        check!(positive("control.rates.pwm_frequency_hz", self.rates.pwm_frequency_hz));
-        check!(nonzero("control.rates.speed_loop_divider", self.rates.speed_loop_divider));
-        check!(nonzero("control.rates.position_loop_divider", self.rates.position_loop_divider));
-        if !self.rates.position_loop_divider.is_multiple_of(self.rates.speed_loop_divider) {
-            return Err(ParamError {
-                field: "control.rates.position_loop_divider",
-                reason: "must be a multiple of speed_loop_divider",
-            });
-        }
-        check!(positive("control.current_pi.kp", self.current_pi.kp));
-        check!(non_negative("control.current_pi.ki", self.current_pi.ki));
-        check!(positive("control.speed_pi.kp", self.speed_pi.kp));
-        check!(non_negative("control.speed_pi.ki", self.speed_pi.ki));
-        check!(non_negative("control.torque_filter_hz", self.torque_filter_hz));
-        check!(positive("control.position_kp_per_s", self.position_kp_per_s));
-        let e = &self.encoder;
-        check!(nonzero("control.encoder.counts_per_rev", e.counts_per_rev));
-        if e.counts_per_rev > 32_768 {
-            // The core unwraps a 16-bit counter: one revolution must fit in half its range.
-            return Err(ParamError { field: "control.encoder.counts_per_rev", reason: "must be <= 32768" });
-        }
-        if e.direction != 1 && e.direction != -1 {
-            return Err(ParamError { field: "control.encoder.direction", reason: "must be 1 or -1" });
-        }
-        if !e.electrical_offset_rad.is_finite() {
-            return Err(ParamError { field: "control.encoder.electrical_offset_rad", reason: "must be finite" });
-        }
-        check!(positive("control.encoder.pll_kp_per_s", e.pll_kp_per_s));
-        check!(positive("control.encoder.pll_ki_per_s2", e.pll_ki_per_s2));
-        let t = &self.trajectory;
-        check!(positive("control.trajectory.max_velocity_m_s", t.max_velocity_m_s));
-        check!(positive("control.trajectory.max_acceleration_m_s2", t.max_acceleration_m_s2));
-        check!(positive("control.trajectory.max_jerk_m_s3", t.max_jerk_m_s3));
-        let l = &self.limits;
-        check!(positive("control.limits.current_max_a", l.current_max_a));
-        check!(positive("control.limits.copper_power_max_w", l.copper_power_max_w));
-        check!(positive("control.limits.speed_max_rad_s", l.speed_max_rad_s));
-        check!(non_negative("control.limits.stroke_min_m", l.stroke_min_m));
-        check!(positive("control.limits.stroke_max_m", l.stroke_max_m));
-        if l.stroke_max_m <= l.stroke_min_m {
-            return Err(ParamError { field: "control.limits.stroke_max_m", reason: "must exceed stroke_min_m" });
-        }
-        check!(positive("control.limits.max_modulation", l.max_modulation));
-        if l.max_modulation > 1.0 {
-            return Err(ParamError { field: "control.limits.max_modulation", reason: "must be <= 1" });
-        }
-        let f = &self.faults;
-        check!(positive("control.faults.overcurrent_trip_a", f.overcurrent_trip_a));
-        if f.overcurrent_trip_a < l.current_max_a {
-            return Err(ParamError {
-                field: "control.faults.overcurrent_trip_a",
-                reason: "must be >= limits.current_max_a, or normal operation trips",
-            });
-        }
-        check!(positive("control.faults.bus_overvoltage_v", f.bus_overvoltage_v));
-        check!(positive("control.faults.bus_undervoltage_v", f.bus_undervoltage_v));
-        if f.bus_overvoltage_v <= f.bus_undervoltage_v {
-            return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "must exceed bus_undervoltage_v" });
-        }
-        check!(nonzero("control.faults.encoder_max_step_counts", f.encoder_max_step_counts));
-        check!(positive("control.faults.encoder_max_innovation_counts", f.encoder_max_innovation_counts));
-        check!(positive("control.faults.position_following_error_m", f.position_following_error_m));
-        check!(non_negative("control.faults.stroke_overtravel_m", f.stroke_overtravel_m));
-        check!(positive("control.load_estimate.filter_hz", self.load_estimate.filter_hz));
-        check!(positive("control.alignment.current_a", self.alignment.current_a));
-        if self.alignment.current_a > l.current_max_a {
-            return Err(ParamError { field: "control.alignment.current_a", reason: "must be <= limits.current_max_a" });
-        }
-        check!(positive("control.alignment.duration_s", self.alignment.duration_s));
-        check!(positive("control.faults.speed_following_error_rad_s", f.speed_following_error_rad_s));
-        check!(positive("control.faults.speed_following_time_s", f.speed_following_time_s));
-        check!(positive("control.faults.encoder_lost_speed_rad_s", f.encoder_lost_speed_rad_s));
-        check!(positive("control.faults.encoder_lost_time_s", f.encoder_lost_time_s));
-        check!(non_negative("control.faults.stroke_soft_margin_m", f.stroke_soft_margin_m));
-        if f.stroke_soft_margin_m >= f.stroke_overtravel_m {
-            return Err(ParamError {
-                field: "control.faults.stroke_soft_margin_m",
-                reason: "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
-            });
-        }
-        check!(positive("control.faults.stop_deceleration_m_s2", f.stop_deceleration_m_s2));
-        if f.stop_deceleration_m_s2 < self.trajectory.max_acceleration_m_s2 {
-            return Err(ParamError {
-                field: "control.faults.stop_deceleration_m_s2",
-                reason: "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
-            });
-        }
-        check!(positive("control.faults.observer_shift_max_m", f.observer_shift_max_m));
-        check!(positive("control.faults.current_sum_max_a", f.current_sum_max_a));
-        check!(nonzero("control.faults.current_sum_periods", f.current_sum_periods));
-        check!(positive("control.faults.stop_following_error_m", f.stop_following_error_m));
-        check!(positive("control.faults.open_phase_window_s", f.open_phase_window_s));
-        check!(positive("control.faults.open_phase_current_a", f.open_phase_current_a));
-        check!(positive("control.faults.open_phase_ratio", f.open_phase_ratio));
-        if f.open_phase_ratio >= 1.0 {
-            return Err(ParamError { field: "control.faults.open_phase_ratio", reason: "must be < 1" });
-        }
-        let b = &self.brake;
-        check!(non_negative("control.brake.release_time_s", b.release_time_s));
-        check!(non_negative("control.brake.engage_time_s", b.engage_time_s));
-        check!(non_negative("control.brake.holding_torque_n_m", b.holding_torque_n_m));
-        let c = &self.compensation;
-        check!(positive("control.compensation.shift_max_m", c.shift_max_m));
-        if c.shift_max_m > f.observer_shift_max_m {
-            return Err(ParamError {
-                field: "control.compensation.shift_max_m",
-                reason: "must be <= faults.observer_shift_max_m",
-            });
-        }
-        check!(positive("control.compensation.shift_rate_max_m_s", c.shift_rate_max_m_s));
-        let th = &self.thermal;
-        check!(positive("control.thermal.continuous_current_a", th.continuous_current_a));
-        if th.continuous_current_a > l.current_max_a {
-            return Err(ParamError { field: "control.thermal.continuous_current_a", reason: "must be <= limits.current_max_a" });
-        }
-        check!(positive("control.thermal.time_constant_s", th.time_constant_s));
-        check!(positive("control.thermal.foldback_start", th.foldback_start));
-        if th.foldback_start >= 1.0 {
-            return Err(ParamError { field: "control.thermal.foldback_start", reason: "must be < 1" });
-        }
-        if !(th.trip_level > 1.0) || !th.trip_level.is_finite() {
-            return Err(ParamError { field: "control.thermal.trip_level", reason: "must be finite and > 1" });
-        }
-        let r = &self.ratings;
-        check!(positive("control.ratings.motor_peak_current_a", r.motor_peak_current_a));
-        check!(positive("control.ratings.inverter_peak_current_a", r.inverter_peak_current_a));
-        check!(positive("control.ratings.bus_max_voltage_v", r.bus_max_voltage_v));
-        check!(positive("control.ratings.speed_max_rad_s", r.speed_max_rad_s));
-        if l.current_max_a > r.motor_peak_current_a || l.current_max_a > r.inverter_peak_current_a {
-            return Err(ParamError {
-                field: "control.limits.current_max_a",
-                reason: "above the motor or inverter peak rating (control.ratings)",
-            });
-        }
-        if f.overcurrent_trip_a > r.inverter_peak_current_a {
-            return Err(ParamError {
-                field: "control.faults.overcurrent_trip_a",
-                reason: "above control.ratings.inverter_peak_current_a",
-            });
-        }
-        if f.bus_overvoltage_v > r.bus_max_voltage_v {
-            return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "above control.ratings.bus_max_voltage_v" });
-        }
-        if l.speed_max_rad_s > r.speed_max_rad_s {
-            return Err(ParamError { field: "control.limits.speed_max_rad_s", reason: "above control.ratings.speed_max_rad_s" });
-        }
-        Ok(())
-    }
-}

@@ -1,0 +1,253 @@
+//! The loop cascade: position (1 kHz) → speed (5 kHz) → current (20 kHz),
+//! and the telemetry record cut at the position rate.
+
+use super::Controller;
+use crate::compensation::Compensator;
+use crate::foc::current_loop::RotorState;
+use crate::foc::Dq;
+use crate::io::{PwmCommand, SensorSample};
+use crate::lifecycle::{HomingInput, Readiness};
+use crate::motion::speed_loop::friction_feedforward_n_m;
+use crate::motion::{position_step, TrajectorySample};
+use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
+use crate::telemetry::{Mode, Telemetry};
+
+/// While the current loop sits on its voltage circle the speed PI may ask
+/// for at most this much more q current than flows: it cannot get more, so
+/// its integrator must not wind up for it.
+const VOLTAGE_LIMITED_Q_MARGIN_A: f32 = 1.0;
+
+impl Controller {
+    pub(super) fn rotor_state(&self) -> RotorState {
+        let k = self.derived.electrical_rad_per_count;
+        RotorState {
+            // Not wrapped: within offset ± 2π·pole_pairs, which `sincos`
+            // reduces as accurately as a wrapped angle.
+            electrical_angle_rad: self.encoder.counts_in_turn(&self.params.encoder) * k
+                + self.params.encoder.electrical_offset_rad,
+            electrical_speed_rad_s: self.encoder.speed_counts_s() * k,
+        }
+    }
+
+    pub(super) fn run_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
+        if position_tick {
+            self.position_period(s);
+        }
+        if speed_tick {
+            self.speed_period();
+        }
+        let rotor = self.rotor_state();
+        self.current_period(s, rotor)
+    }
+
+    /// The speed PI inside the q-current bounds of this instant.
+    #[inline(never)]
+    fn speed_period(&mut self) {
+        let mut limit = self.thermal.current_limit_a(&self.params.thermal, self.derived.current_limit_a);
+        if let Some(t) = self.power_stage_temperature_c {
+            let ps = &self.params.power_stage;
+            let share = crate::math::clamp((ps.temperature_trip_c - t) / (ps.temperature_trip_c - ps.temperature_foldback_c), 0.0, 1.0);
+            limit = crate::math::min(limit, share * self.derived.current_limit_a);
+        }
+        if limit < self.derived.current_limit_a {
+            self.limits.insert(LimitFlags::THERMAL);
+        }
+        let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
+        let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
+        let (mut lo, mut hi) = (-iq_max, iq_max);
+        if self.limits.contains(LimitFlags::VOLTAGE) {
+            let reachable = self.current_dq.q.abs() + VOLTAGE_LIMITED_Q_MARGIN_A;
+            lo = crate::math::max(lo, -reachable);
+            hi = crate::math::min(hi, reachable);
+        }
+        if self.mode == Mode::Homing && !self.homing_backing_off {
+            // Around the hold current: lifts the load, pushes into the stop
+            // with a bounded force.
+            let push = self.params.homing.current_max_a;
+            lo = crate::math::max(lo, self.hold_current_q_a - push);
+            hi = crate::math::min(hi, self.hold_current_q_a + push);
+        }
+        self.q_current_min_a = lo;
+        self.q_current_max_a = hi;
+        let out = self.speed_loop.step(
+            &self.params,
+            self.speed_reference_rad_s,
+            self.acceleration_reference_rad_s2,
+            self.friction_ff_n_m,
+            self.speed_rad_s(),
+            lo,
+            hi,
+        );
+        self.current_reference.q = out.current_q_reference_a;
+        if out.current_limited {
+            self.limits.insert(LimitFlags::CURRENT);
+        }
+    }
+
+    pub(super) fn current_period(&mut self, s: &SensorSample, rotor: RotorState) -> PwmCommand {
+        let out = self.current_loop.step(&self.params, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
+        self.current_dq = out.current_dq;
+        self.voltage_dq = out.voltage_dq;
+        if out.voltage_limited {
+            self.limits.insert(LimitFlags::VOLTAGE);
+        }
+        // `step` decides the brake output for the whole period.
+        PwmCommand { duty: out.duty, enable: true, brake_release: self.brake_release }
+    }
+
+    /// The position reference for this period: the planned move, homing,
+    /// or the controlled stop.
+    fn next_reference(&mut self) -> TrajectorySample {
+        if matches!(self.mode, Mode::Stopping | Mode::Braking) {
+            return self.stop.advance(self.derived.position_period_s);
+        }
+        if self.brake_opening() {
+            // The move (or homing) waits for the brake: hold its start.
+            return self.trajectory.sample(0.0);
+        }
+        if self.mode == Mode::Homing && !self.homing_backing_off {
+            return self.homing_reference();
+        }
+        let t = self.move_ticks as f32 * self.derived.position_period_s;
+        self.move_ticks = self.move_ticks.saturating_add(1);
+        self.trajectory.sample(t)
+    }
+
+    /// One homing period; on contact the frame moves and the back-off starts.
+    fn homing_reference(&mut self) -> TrajectorySample {
+        let input = HomingInput { position_m: self.motor_position_m(), speed_rad_s: self.speed_rad_s(), home_switch: self.home_switch };
+        let out = self.homing.update(&self.params, &input, self.derived.position_period_s);
+        match out.done {
+            None => TrajectorySample { position_m: out.position_m, velocity_m_s: out.velocity_m_s, acceleration_m_s2: 0.0 },
+            Some(Ok(found_m)) => {
+                self.finish_homing(found_m);
+                self.trajectory.sample(0.0)
+            }
+            Some(Err(fault)) => {
+                self.raise(fault);
+                let here = self.motor_position_m();
+                TrajectorySample { position_m: here, velocity_m_s: 0.0, acceleration_m_s2: 0.0 }
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn position_period(&mut self, s: &SensorSample) {
+        let r = self.next_reference();
+        self.position_reference_m = r.position_m;
+        let observer_shift = if self.mode == Mode::Running {
+            let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n());
+            let c = self.compensator.update(&self.params, inputs, self.derived.position_period_s);
+            if c.limited {
+                self.limits.insert(LimitFlags::COMPENSATION);
+            }
+            if c.input_clamped {
+                self.limits.insert(LimitFlags::OBSERVER_INPUT);
+            }
+            if c.out_of_bounds {
+                self.raise(FaultSet::OBSERVER_OUT_OF_BOUNDS);
+            }
+            c.shift_m
+        } else {
+            0.0
+        };
+        let step_max = self.params.compensation.shift_rate_max_m_s * self.derived.position_period_s;
+        self.external_shift_applied_m +=
+            crate::math::clamp(self.position_shift_m - self.external_shift_applied_m, -step_max, step_max);
+        self.applied_shift_m = observer_shift + self.external_shift_applied_m;
+        let mut command = r.position_m + self.applied_shift_m;
+        if self.readiness.contains(Readiness::HOMED) {
+            let l = &self.params.limits;
+            let (clamped_command, clamped) = clamp_to_stroke(command, l.stroke_min_m, l.stroke_max_m);
+            if clamped {
+                self.limits.insert(LimitFlags::STROKE);
+            }
+            command = clamped_command;
+        }
+        self.position_command_m = command;
+        let out = position_step(&self.params, command, r.velocity_m_s, r.acceleration_m_s2, self.motor_position_m());
+        self.speed_reference_rad_s = out.speed_reference_rad_s;
+        self.acceleration_reference_rad_s2 = out.acceleration_reference_rad_s2;
+        if out.speed_limited {
+            self.limits.insert(LimitFlags::SPEED);
+        }
+        self.bound_regeneration();
+        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, r.velocity_m_s, self.load.slow_force_n());
+        let inertial_n = self.params.drive_train.moving_mass_kg * r.acceleration_m_s2;
+        let dt = self.derived.position_period_s;
+        match s.load_cell_force_n {
+            // The load cell sits beyond the nut and the seal: it feels the
+            // payload's inertia but none of the friction.
+            Some(f) => {
+                self.load.update_measured(&self.params, f, inertial_n, dt);
+            }
+            None => {
+                // The estimate reads friction through the same torque-to-force
+                // scaling as the load, so the fed-forward torque goes with it.
+                let friction_n = self.friction_ff_n_m * self.params.drive_train.screw_efficiency / self.params.metres_per_rad();
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n + friction_n, dt);
+            }
+        }
+    }
+
+    /// Regeneration: while the bus is above `regen_bus_start_v`, a load that
+    /// drives the motor (torque against speed) may return at most the power
+    /// left between that and `regen_bus_max_v`. Refusing the current would
+    /// drop a hanging load; bounding the speed bounds the power instead.
+    fn bound_regeneration(&mut self) {
+        let ps = &self.params.power_stage;
+        if self.bus_voltage_v <= ps.regen_bus_start_v {
+            return;
+        }
+        let torque_n_m = self.params.torque_constant_n_m_a() * self.current_reference.q;
+        if torque_n_m * self.speed_reference_rad_s >= 0.0 {
+            return;
+        }
+        let share = crate::math::clamp((ps.regen_bus_max_v - self.bus_voltage_v) / (ps.regen_bus_max_v - ps.regen_bus_start_v), 0.0, 1.0);
+        let speed_max = share * ps.regen_power_max_w / crate::math::max(torque_n_m.abs(), 1e-3);
+        if self.speed_reference_rad_s.abs() > speed_max {
+            self.speed_reference_rad_s = speed_max.copysign(self.speed_reference_rad_s);
+            self.acceleration_reference_rad_s2 = 0.0;
+            self.limits.insert(LimitFlags::REGEN);
+        }
+    }
+
+    #[inline(never)]
+    pub(super) fn cut_telemetry(&mut self) {
+        let mut limits = self.limits;
+        limits.insert(self.pending_limits);
+        self.telemetry = Telemetry {
+            time_s: self.tick as f32 * self.derived.pwm_period_s,
+            mode: self.mode,
+            position_reference_m: self.position_reference_m,
+            position_command_m: self.position_command_m,
+            position_shift_m: self.applied_shift_m,
+            motor_position_m: self.motor_position_m(),
+            motor_angle_rad: self.encoder.position_counts() * self.derived.rad_per_count,
+            speed_reference_rad_s: self.speed_reference_rad_s,
+            speed_rad_s: self.speed_rad_s(),
+            current_d_a: self.current_dq.d,
+            current_q_a: self.current_dq.q,
+            current_q_reference_a: self.current_reference.q,
+            voltage_d_v: self.voltage_dq.d,
+            voltage_q_v: self.voltage_dq.q,
+            bus_voltage_v: self.bus_voltage_v,
+            terminal_position_m: self.terminal_position_m,
+            load_force_estimate_n: self.load.force_n(),
+            faults: self.faults,
+            limits,
+            readiness: self.readiness,
+        };
+        self.limits = LimitFlags::NONE;
+        self.pending_limits = LimitFlags::NONE;
+    }
+
+    /// Stationary current vector (commutation): magnitude at an electrical
+    /// angle, held by the current loop with the rotor angle fixed there.
+    pub(super) fn vector_period(&mut self, s: &SensorSample, current_a: f32, angle_rad: f32, brake_release: bool) -> PwmCommand {
+        self.current_reference = Dq { d: current_a, q: 0.0 };
+        let mut out = self.current_period(s, RotorState { electrical_angle_rad: angle_rad, electrical_speed_rad_s: 0.0 });
+        out.brake_release = brake_release;
+        out
+    }
+}

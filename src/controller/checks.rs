@@ -1,0 +1,284 @@
+//! Protection checks: a sample in, the conditions present and the latched
+//! faults out. The reactions live in `reactions.rs`.
+
+use super::Controller;
+use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
+use crate::io::SensorSample;
+use crate::motion::StopRamp;
+use crate::protection::FaultSet;
+use crate::telemetry::Mode;
+
+/// Conditions evaluated at the speed-loop rate.
+const SPEED_RATE_CAUSES: FaultSet = FaultSet(
+    FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0 | FaultSet::OPEN_PHASE.0 | FaultSet::POWER_STAGE_OVERTEMP.0,
+);
+
+/// Conditions evaluated at the position-loop rate.
+const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
+
+/// Bridge-off faults after which the low-side switches must not be closed:
+/// the current can no longer be measured or bounded (overcurrent, a sensor,
+/// a NaN sample, the hardware break already acted), or the core's timing is
+/// not trusted (overrun, watchdog), or nothing was ever set up (parameters).
+const NO_SHORT_CIRCUIT: FaultSet = FaultSet(
+    FaultSet::OVERCURRENT.0
+        | FaultSet::CURRENT_SENSOR.0
+        | FaultSet::NON_FINITE_INPUT.0
+        | FaultSet::BRIDGE_BREAK.0
+        | FaultSet::ISR_OVERRUN.0
+        | FaultSet::WATCHDOG_RESET.0
+        | FaultSet::INVALID_PARAMS.0,
+);
+
+impl Controller {
+    /// Latches `f`; new faults get their reaction.
+    #[inline(never)]
+    pub(super) fn raise(&mut self, f: FaultSet) {
+        let new = f.difference(self.faults);
+        if new.is_empty() {
+            return;
+        }
+        self.faults.insert(new);
+        self.forget_position(new);
+        // A failed start-up step is not retried by a later `StartUp` step.
+        self.start_up_sequence = false;
+        if !self.faults.only_controlled_stop() {
+            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing)
+                && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
+            // Short-circuit braking bridges the brake's engage time, where
+            // the fault leaves the power stage and the supply trustworthy.
+            self.short_circuit_periods = if driving && self.params.brake.fitted && self.faults.intersection(NO_SHORT_CIRCUIT).is_empty() {
+                self.derived.brake_engage_periods
+            } else {
+                0
+            };
+            self.mode = Mode::Fault;
+            return;
+        }
+        match self.mode {
+            Mode::Running | Mode::Homing => self.begin_stop(),
+            // Already decelerating to rest.
+            Mode::Stopping | Mode::Braking => {}
+            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
+        }
+    }
+
+    /// Decelerates from the measured motion to rest and holds there.
+    #[inline(never)]
+    pub(super) fn begin_stop(&mut self) {
+        let v = self.speed_rad_s() * self.params.metres_per_rad();
+        self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
+        // The stop's path starts here: following checks before the next
+        // position period must not judge it by the command it replaced.
+        self.position_command_m = self.motor_position_m();
+        self.position_shift_m = 0.0;
+        self.external_shift_applied_m = 0.0;
+        self.compensator.set_enabled(false);
+        self.compensator.reset();
+        self.homing_backing_off = false;
+        self.mode = Mode::Stopping;
+    }
+
+    /// The outer-rate checks, then every new condition latched.
+    #[inline]
+    pub(super) fn latch_conditions(&mut self, mut present: FaultSet, s: &SensorSample, speed_tick: bool, position_tick: bool) {
+        // Causes checked at the outer rates keep their last verdict between
+        // their ticks, or a clear between two ticks would find them gone.
+        present = present.union(if speed_tick {
+            self.check_speed_period(s.phase_current_a)
+        } else {
+            self.present.intersection(SPEED_RATE_CAUSES)
+        });
+        present = present.union(if position_tick {
+            self.check_motion()
+        } else {
+            self.present.intersection(POSITION_RATE_CAUSES)
+        });
+        self.present = present;
+        let raised = present.difference(FaultSet::INVALID_PARAMS);
+        if !raised.difference(self.faults).is_empty() {
+            self.raise(raised);
+        }
+    }
+
+    /// Checks one sample; returns the conditions present now.
+    pub(super) fn check_inputs(&mut self, s: &SensorSample) -> FaultSet {
+        let f = &self.params.faults;
+        let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
+        let [a, b, c] = s.phase_current_a;
+        // One compare checks every input (a branch each costs more at 20 kHz).
+        use crate::math::finite_probe;
+        let v = s.bus_voltage_v;
+        let mut probe = finite_probe(a) + finite_probe(b) + finite_probe(c) + finite_probe(v);
+        if let Some(x) = s.terminal_position_m {
+            probe += finite_probe(x);
+        }
+        if let Some(x) = s.load_cell_force_n {
+            probe += finite_probe(x);
+        }
+        if probe != 0.0 {
+            self.current_sum_count = 0;
+            present.insert(FaultSet::NON_FINITE_INPUT);
+            return present;
+        }
+        // Only finite readings are kept for telemetry and `Enable`'s bus check.
+        self.bus_voltage_v = v;
+        self.terminal_position_m = s.terminal_position_m;
+        use crate::math::max;
+        if max(max(a.abs(), b.abs()), c.abs()) > f.overcurrent_trip_a {
+            present.insert(FaultSet::OVERCURRENT);
+        }
+        // Σi must persist over `current_sum_periods`: noise on three
+        // independent channels adds up too.
+        if (a + b + c).abs() > f.current_sum_max_a {
+            self.current_sum_count = self.current_sum_count.saturating_add(1);
+            if self.current_sum_count >= f.current_sum_periods {
+                present.insert(FaultSet::CURRENT_SENSOR);
+            }
+        } else {
+            self.current_sum_count = 0;
+        }
+        // The usual case, a bus inside its window, costs one test of each bound.
+        if v >= f.bus_undervoltage_v && v <= f.bus_overvoltage_v {
+            return present;
+        }
+        if v > f.bus_overvoltage_v {
+            present.insert(FaultSet::BUS_OVERVOLTAGE);
+        }
+        // Only while the bridge is on (or about to be) or the fault is
+        // latched: a board powered from USB with the bus off must still be
+        // configurable, but a latched undervoltage must not clear during the
+        // sag.
+        let watching = !matches!(self.mode, Mode::Disabled | Mode::Fault) || self.faults.contains(FaultSet::BUS_UNDERVOLTAGE);
+        if v < f.bus_undervoltage_v && watching {
+            present.insert(FaultSet::BUS_UNDERVOLTAGE);
+        }
+        present
+    }
+
+    /// Winding and power-stage temperature, speed following, encoder loss
+    /// (no counts while turning, or back-EMF without counts at standstill)
+    /// and open phases, at the speed rate. Returns the standing conditions;
+    /// raises the events.
+    #[inline(never)]
+    fn check_speed_period(&mut self, phase_current_a: [f32; 3]) -> FaultSet {
+        let mut present = FaultSet::NONE;
+        let dt = self.derived.speed_period_s;
+        let i2 = self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q;
+        self.thermal.update(&self.params.thermal, i2, dt);
+        // Hysteresis: once tripped, the cause stays until the winding has
+        // cooled below the foldback start.
+        let th = &self.params.thermal;
+        let hot = if self.faults.contains(FaultSet::MOTOR_OVERTEMP) {
+            self.thermal.level() > th.foldback_start
+        } else {
+            self.thermal.tripped(th)
+        };
+        if hot {
+            present.insert(FaultSet::MOTOR_OVERTEMP);
+        }
+        if let Some(t) = self.power_stage_temperature_c {
+            let ps = &self.params.power_stage;
+            let limit = if self.faults.contains(FaultSet::POWER_STAGE_OVERTEMP) { ps.temperature_foldback_c } else { ps.temperature_trip_c };
+            if !(t < limit) {
+                present.insert(FaultSet::POWER_STAGE_OVERTEMP);
+            }
+        }
+        let count = self.encoder.count();
+        let moved = count != self.count_at_last_speed_tick;
+        self.count_at_last_speed_tick = count;
+        if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing) {
+            self.speed_error_s = 0.0;
+            self.no_count_s = 0.0;
+            self.emf_mismatch_s = 0.0;
+            // With the bridge off nothing can be judged; an open phase shows
+            // again within a window of the next enable.
+            self.open_phase.reset();
+            self.open_phase_present = false;
+            return present;
+        }
+        let sc = SinCos::of(self.rotor_state().electrical_angle_rad);
+        let reference_a = inverse_clarke(inverse_park(self.current_reference, sc));
+        let window = self.derived.open_phase_window_ticks;
+        if let Some(open) = self.open_phase.update(&self.params.faults, window, reference_a, phase_current_a) {
+            self.open_phase_present = open;
+        }
+        if self.open_phase_present {
+            present.insert(FaultSet::OPEN_PHASE);
+        }
+        let f = &self.params.faults;
+        let w_ref = self.speed_reference_rad_s;
+        self.speed_error_s =
+            if (w_ref - self.speed_rad_s()).abs() > f.speed_following_error_rad_s { self.speed_error_s + dt } else { 0.0 };
+        if self.speed_error_s >= f.speed_following_time_s {
+            present.insert(FaultSet::SPEED_FOLLOWING);
+        }
+        self.no_count_s = if !moved && w_ref.abs() > f.encoder_lost_speed_rad_s { self.no_count_s + dt } else { 0.0 };
+        if self.no_count_s >= f.encoder_lost_time_s {
+            self.raise(FaultSet::ENCODER_LOST);
+        }
+        if self.emf_speed_mismatch() {
+            self.emf_mismatch_s += dt;
+            if self.emf_mismatch_s >= self.params.power_stage.emf_mismatch_time_s {
+                self.raise(FaultSet::ENCODER_LOST);
+            }
+        } else {
+            self.emf_mismatch_s = 0.0;
+        }
+        present
+    }
+
+    /// Back-EMF against the encoder: `|u − R i| / ψ` is the electrical speed
+    /// the winding sees, in whatever frame the encoder gives. A rotor that
+    /// slips while the counter stands still (a lost encoder under a
+    /// hanging load, even at standstill) shows speed there and none in the
+    /// counts. The commanded voltage stands for the applied one; below the
+    /// threshold the dead-time error and `L di/dt` hide in the margin.
+    fn emf_speed_mismatch(&self) -> bool {
+        let m = &self.params.motor;
+        let ed = self.voltage_dq.d - m.phase_resistance_ohm * self.current_dq.d;
+        let eq = self.voltage_dq.q - m.phase_resistance_ohm * self.current_dq.q;
+        let w_e_encoder = self.speed_rad_s() * m.pole_pairs as f32;
+        // Cross-coupling ω_e L i of the encoder's own speed is no mismatch.
+        let coupling = w_e_encoder.abs() * m.inductance_q_h * crate::math::sqrt(self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q);
+        let emf = crate::math::sqrt(ed * ed + eq * eq);
+        let w_e_emf = crate::math::max(emf - coupling, 0.0) / m.flux_linkage_wb;
+        w_e_emf - w_e_encoder.abs() > self.params.power_stage.emf_speed_mismatch_rad_s * m.pole_pairs as f32
+    }
+
+    /// Following error, overtravel and the soft limits, at the position rate.
+    /// Stroke and soft limits mean something only once homed.
+    #[inline(never)]
+    fn check_motion(&mut self) -> FaultSet {
+        let mut present = FaultSet::NONE;
+        let x = self.motor_position_m();
+        let l = &self.params.limits;
+        let f = &self.params.faults;
+        let homed = self.readiness.contains(crate::lifecycle::Readiness::HOMED);
+        if homed && (x < l.stroke_min_m - f.stroke_overtravel_m || x > l.stroke_max_m + f.stroke_overtravel_m) {
+            present.insert(FaultSet::STROKE_OVERTRAVEL);
+        }
+        let following = (self.position_command_m - x).abs();
+        if matches!(self.mode, Mode::Running | Mode::Stopping) && following > f.position_following_error_m {
+            present.insert(FaultSet::POSITION_FOLLOWING);
+        }
+        let brake_stronger = self.params.brake.fitted
+            && self.params.torque_constant_n_m_a() * self.q_current_max_a < self.params.brake.holding_torque_n_m;
+        let stop_failed =
+            matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
+        if self.mode == Mode::Running && homed {
+            // Where would a stop at the stop deceleration end?
+            let v = self.speed_rad_s() * self.params.metres_per_rad();
+            let rest = x + v * v.abs() / (2.0 * f.stop_deceleration_m_s2);
+            if rest > l.stroke_max_m + f.stroke_soft_margin_m || rest < l.stroke_min_m - f.stroke_soft_margin_m {
+                self.raise(FaultSet::SOFT_LIMIT);
+            }
+        }
+        // The stop starts from the measured position: straying from it means
+        // the load is winning. The brake must take it before the end stop.
+        if stop_failed {
+            self.raise(FaultSet::STOP_FAILED);
+        }
+        present
+    }
+}

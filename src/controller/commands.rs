@@ -1,0 +1,347 @@
+//! The mode machine: what a host may ask, when, and what it changes.
+//! Nothing here runs the loops; `step` does, one period at a time.
+
+use super::Controller;
+use crate::foc::Dq;
+use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
+use crate::motion::{ScurveMove, StopRamp};
+use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
+use crate::telemetry::Mode;
+
+/// What the host (main task, simulator scenario) may ask of the drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Switch the bridge on and hold the present position; with a brake the
+    /// hold current builds before it lets go. Needs commutation.
+    Enable,
+    /// Stop, let the brake close under the loops, switch the bridge off.
+    Disable,
+    /// Plan a jerk-limited move from the present command to `position_m`.
+    /// Needs homing.
+    MoveTo { position_m: f32 },
+    /// Move by `distance_m` at no more than `homing.jog_speed_max_m_s`: the
+    /// only motion a drive that is not homed may make.
+    Jog { distance_m: f32 },
+    /// Declare the present motor-side position to be `position_m`: a user
+    /// offset, apart from the count the electrical angle comes from.
+    SetHome { position_m: f32 },
+    /// Measure the current-sensor offsets (bridge off).
+    Calibrate,
+    /// Commutation: find the electrical offset with the brake holding the
+    /// load, check direction and pole pairs; ends holding, bridge on.
+    Align,
+    /// Homing (`homing.method`); ends holding at home + back-off.
+    Home,
+    /// Every start-up step not yet done, in order, ending ready: calibrate,
+    /// align, home.
+    StartUp,
+    /// Clear latched faults whose cause is gone.
+    ClearFaults,
+    /// An external shift added to the trajectory before the position loop,
+    /// metres (on top of the observer's, if compensation is on).
+    SetPositionShift { shift_m: f32 },
+    /// Switch the observer's terminal-error compensation on or off.
+    SetCompensation { enabled: bool },
+}
+
+/// A command was taken, possibly after bounding it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandOutcome {
+    Accepted,
+    /// The target lay outside the stroke; this is the position planned instead.
+    ClampedToStroke { position_m: f32 },
+}
+
+/// Why a command was refused. Nothing changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandError {
+    /// Faults are latched; clear them first.
+    Faulted(FaultSet),
+    /// These latched faults still have their cause present.
+    CauseStillPresent(FaultSet),
+    /// The command needs the bridge enabled (Running).
+    NotRunning,
+    /// The command needs the bridge disabled.
+    NotDisabled,
+    /// A move or a start-up step is still in progress.
+    Busy,
+    /// A NaN or infinite argument.
+    NotFinite,
+    /// An argument beyond its bound (e.g. a shift above
+    /// `faults.observer_shift_max_m`).
+    OutOfRange,
+    /// The bus voltage is below `faults.bus_undervoltage_v`.
+    BusLow,
+    /// The start-up step still missing: current calibration…
+    NotCalibrated,
+    /// …commutation (`Align`)…
+    NotCommutated,
+    /// …or homing (`Home`, or `SetHome` on a rig with a known reference).
+    NotHomed,
+}
+
+/// Faults after which the electrical offset and the reference are not
+/// trusted any more (the counter may have lost or gained counts).
+const LOSES_POSITION: FaultSet = FaultSet(FaultSet::ENCODER_JUMP.0 | FaultSet::ENCODER_LOST.0 | FaultSet::WATCHDOG_RESET.0);
+
+impl Controller {
+    /// Handles one command from thread context.
+    pub fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        match cmd {
+            Command::Enable => self.enable(),
+            Command::Disable => {
+                self.start_up_sequence = false;
+                if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Homing) {
+                    // Stop, let the brake close under the loops, then switch off.
+                    let v = self.speed_rad_s() * self.params.metres_per_rad();
+                    self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
+                    self.brake_periods = 0;
+                    self.mode = Mode::Braking;
+                } else if self.mode == Mode::Aligning {
+                    // The commutation holds its vector while the brake closes.
+                    return Err(CommandError::Busy);
+                } else if self.mode != Mode::Braking {
+                    self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+                    self.reset_loops();
+                }
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::MoveTo { position_m } => {
+                if !position_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                self.check_can_move()?;
+                if !self.readiness.contains(Readiness::HOMED) {
+                    return Err(CommandError::NotHomed);
+                }
+                let l = &self.params.limits;
+                let (target, clamped) = clamp_to_stroke(position_m, l.stroke_min_m, l.stroke_max_m);
+                self.trajectory = ScurveMove::plan(self.trajectory.end_m(), target, &self.params.trajectory);
+                self.move_ticks = 0;
+                if clamped {
+                    self.pending_limits.insert(LimitFlags::STROKE);
+                    Ok(CommandOutcome::ClampedToStroke { position_m: target })
+                } else {
+                    Ok(CommandOutcome::Accepted)
+                }
+            }
+            Command::Jog { distance_m } => {
+                if !distance_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                self.check_can_move()?;
+                let mut limits = self.params.trajectory;
+                limits.max_velocity_m_s = crate::math::min(limits.max_velocity_m_s, self.params.homing.jog_speed_max_m_s);
+                let mut target = self.trajectory.end_m() + distance_m;
+                let mut outcome = CommandOutcome::Accepted;
+                if self.readiness.contains(Readiness::HOMED) {
+                    let l = &self.params.limits;
+                    let (t, clamped) = clamp_to_stroke(target, l.stroke_min_m, l.stroke_max_m);
+                    if clamped {
+                        self.pending_limits.insert(LimitFlags::STROKE);
+                        outcome = CommandOutcome::ClampedToStroke { position_m: t };
+                    }
+                    target = t;
+                }
+                self.trajectory = ScurveMove::plan(self.trajectory.end_m(), target, &limits);
+                self.move_ticks = 0;
+                Ok(outcome)
+            }
+            Command::SetHome { position_m } => {
+                if !position_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                if matches!(self.mode, Mode::Calibrating | Mode::Aligning | Mode::Homing) || self.move_in_progress() {
+                    return Err(CommandError::Busy);
+                }
+                // Only the user frame moves: the count, and with it the
+                // electrical angle, stays where it is.
+                self.home_offset_m += position_m - self.motor_position_m();
+                self.readiness.insert(Readiness::HOMED);
+                self.hold_here();
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::Calibrate => {
+                self.check_idle()?;
+                self.calibration = CurrentCalibration::new(self.derived.calibration_samples);
+                self.mode = Mode::Calibrating;
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::Align => {
+                self.check_idle()?;
+                if !self.readiness.contains(Readiness::CURRENTS_CALIBRATED) {
+                    return Err(CommandError::NotCalibrated);
+                }
+                self.begin_commutation();
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::Home => {
+                if !self.faults.is_empty() {
+                    return Err(CommandError::Faulted(self.faults));
+                }
+                if !self.readiness.contains(Readiness::COMMUTATED) {
+                    return Err(CommandError::NotCommutated);
+                }
+                match self.mode {
+                    Mode::Disabled => {
+                        self.enable()?;
+                        self.begin_homing();
+                    }
+                    Mode::Running if !self.move_in_progress() => self.begin_homing(),
+                    _ => return Err(CommandError::Busy),
+                }
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::StartUp => {
+                if !self.faults.is_empty() {
+                    return Err(CommandError::Faulted(self.faults));
+                }
+                if !matches!(self.mode, Mode::Disabled | Mode::Running) || self.move_in_progress() {
+                    return Err(CommandError::Busy);
+                }
+                self.start_up_sequence = true;
+                self.next_start_up_step();
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::ClearFaults => {
+                let stuck = self.faults.intersection(self.present);
+                if !stuck.is_empty() {
+                    return Err(CommandError::CauseStillPresent(stuck));
+                }
+                self.faults = FaultSet::NONE;
+                match self.mode {
+                    Mode::Fault => self.mode = Mode::Disabled,
+                    Mode::Stopping => {
+                        // Resume position control where the stop left it.
+                        self.trajectory = ScurveMove::hold(self.position_command_m);
+                        self.move_ticks = 0;
+                        self.mode = Mode::Running;
+                    }
+                    _ => {}
+                }
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::SetPositionShift { shift_m } => {
+                if !shift_m.is_finite() {
+                    return Err(CommandError::NotFinite);
+                }
+                if shift_m.abs() > self.params.faults.observer_shift_max_m {
+                    return Err(CommandError::OutOfRange);
+                }
+                self.position_shift_m = shift_m;
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::SetCompensation { enabled } => {
+                self.compensator.set_enabled(enabled);
+                Ok(CommandOutcome::Accepted)
+            }
+        }
+    }
+
+    /// `Enable`: the bridge on, holding here; with a brake, the hold current
+    /// builds for `brake.preload_time_s` before the brake is told to open.
+    fn enable(&mut self) -> Result<CommandOutcome, CommandError> {
+        if !self.faults.is_empty() {
+            return Err(CommandError::Faulted(self.faults));
+        }
+        if !self.readiness.contains(Readiness::COMMUTATED) {
+            return Err(CommandError::NotCommutated);
+        }
+        // Before the first sample there is no reading; the first period
+        // then checks it like any other.
+        if self.tick > 0 && self.bus_voltage_v < self.params.faults.bus_undervoltage_v {
+            return Err(CommandError::BusLow);
+        }
+        match self.mode {
+            Mode::Running | Mode::Homing => return Ok(CommandOutcome::Accepted),
+            // The loops are holding: keep them, open the brake again.
+            Mode::Braking => {
+                self.hold_here();
+                self.brake_release = true;
+                self.brake_periods = self.derived.brake_preload_periods;
+            }
+            Mode::Disabled => {
+                self.hold_here();
+                self.reset_loops();
+                if self.params.brake.fitted {
+                    self.speed_loop.preload(self.hold_current_q_a);
+                    self.current_reference = Dq { d: 0.0, q: self.hold_current_q_a };
+                }
+                self.brake_release = !self.params.brake.fitted;
+                self.brake_periods = 0;
+            }
+            _ => return Err(CommandError::Busy),
+        }
+        self.mode = Mode::Running;
+        Ok(CommandOutcome::Accepted)
+    }
+
+    /// Refused unless the drive is off with nothing latched.
+    fn check_idle(&self) -> Result<(), CommandError> {
+        if !self.faults.is_empty() {
+            return Err(CommandError::Faulted(self.faults));
+        }
+        if self.mode != Mode::Disabled {
+            return Err(CommandError::NotDisabled);
+        }
+        Ok(())
+    }
+
+    /// Moves need the bridge on, no move under way and the offset known.
+    fn check_can_move(&self) -> Result<(), CommandError> {
+        if !self.readiness.contains(Readiness::COMMUTATED) {
+            return Err(CommandError::NotCommutated);
+        }
+        if self.mode != Mode::Running {
+            return Err(CommandError::NotRunning);
+        }
+        if self.move_in_progress() {
+            return Err(CommandError::Busy);
+        }
+        Ok(())
+    }
+
+    pub(super) fn begin_commutation(&mut self) {
+        self.reset_loops();
+        self.commutation = Commutation::new();
+        self.mode = Mode::Aligning;
+    }
+
+    pub(super) fn begin_homing(&mut self) {
+        self.hold_here();
+        self.homing = Homing::new(self.motor_position_m());
+        self.homing_backing_off = false;
+        self.mode = Mode::Homing;
+    }
+
+    /// Forgets what a fault made untrustworthy.
+    pub(super) fn forget_position(&mut self, new: FaultSet) {
+        if new.intersects(LOSES_POSITION) && !self.params.startup.commutation_known {
+            self.readiness.remove(Readiness::COMMUTATED);
+            self.readiness.remove(Readiness::HOMED);
+        }
+    }
+
+    /// Makes the present position the trajectory's resting point.
+    pub(super) fn hold_here(&mut self) {
+        let here = self.motor_position_m();
+        self.trajectory = ScurveMove::hold(here);
+        self.move_ticks = 0;
+        self.position_reference_m = here;
+        self.position_command_m = here;
+    }
+
+    pub(super) fn reset_loops(&mut self) {
+        self.current_loop.reset();
+        self.speed_loop.reset();
+        self.load.reset();
+        self.current_reference = Dq::default();
+        self.speed_reference_rad_s = 0.0;
+        self.acceleration_reference_rad_s2 = 0.0;
+        self.friction_ff_n_m = 0.0;
+        self.voltage_dq = Dq::default();
+    }
+}

@@ -1,0 +1,444 @@
+//! The drive: one `step` per PWM period, from a sensor sample to three duties.
+//!
+//! Three rooms, one job each:
+//! - `commands.rs`: the mode machine and the commands that move it;
+//! - `lifecycle.rs`: the start-up steps (calibration, commutation, homing);
+//! - `cascade.rs`: the position → speed → current loops;
+//! - `checks.rs`: the protection checks that turn a sample into faults, and
+//!   `reactions.rs`: what a fault or a `Disable` does to the bridge and brake.
+//!
+//! `step` reads as one page: ticks → checks → the mode's period → telemetry.
+
+mod cascade;
+mod checks;
+mod commands;
+mod lifecycle;
+mod reactions;
+
+pub use commands::{Command, CommandError, CommandOutcome};
+
+use crate::compensation::Compensator;
+use crate::foc::{CurrentLoop, Dq};
+use crate::io::{PwmCommand, SensorSample};
+use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
+use crate::load_estimate::LoadEstimator;
+use crate::motion::{EncoderTracker, ScurveMove, SpeedLoop, StopRamp};
+use crate::params::{ControlParams, ParamError, ValidatedParams};
+use crate::protection::{FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
+use crate::telemetry::{Mode, Telemetry};
+use core::f32::consts::PI;
+
+/// Period-independent constants, computed once so the 20 kHz path does no
+/// divisions it can avoid.
+#[derive(Clone, Copy, Debug)]
+struct Derived {
+    pwm_period_s: f32,
+    speed_period_s: f32,
+    position_period_s: f32,
+    current_limit_a: f32,
+    metres_per_count: f32,
+    rad_per_count: f32,
+    /// `pole_pairs · 2π / counts_per_rev`: counts straight to electrical
+    /// radians, one multiply per period.
+    electrical_rad_per_count: f32,
+    open_phase_window_ticks: u32,
+    brake_release_periods: u32,
+    brake_engage_periods: u32,
+    /// `Enable` holds the brake closed this many periods while the hold
+    /// current builds.
+    brake_preload_periods: u32,
+    calibration_samples: u32,
+    /// Rotor speed below which an active short circuit's steady current,
+    /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
+    short_circuit_speed_max_rad_s: f32,
+    speed_ticks_per_position_tick: u32,
+}
+
+impl Derived {
+    fn of(p: &ControlParams) -> Self {
+        let cpr = p.encoder.counts_per_rev as f32;
+        Self {
+            pwm_period_s: p.pwm_period_s(),
+            speed_period_s: p.speed_period_s(),
+            position_period_s: p.position_period_s(),
+            current_limit_a: p.current_limit_a(),
+            metres_per_count: p.drive_train.screw_lead_m / cpr,
+            rad_per_count: 2.0 * PI / cpr,
+            electrical_rad_per_count: p.motor.pole_pairs as f32 * (2.0 * PI / cpr),
+            open_phase_window_ticks: periods(p.faults.open_phase_window_s, p.speed_period_s()),
+            brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
+            brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
+            brake_preload_periods: if p.brake.fitted { periods(p.brake.preload_time_s, p.pwm_period_s()) } else { 0 },
+            calibration_samples: periods(p.calibration.duration_s, p.pwm_period_s()),
+            short_circuit_speed_max_rad_s: short_circuit_speed_max_rad_s(p),
+            // Validated: a non-zero multiple of the speed divider.
+            speed_ticks_per_position_tick: p.rates.position_loop_divider.checked_div(p.rates.speed_loop_divider).unwrap_or(1),
+        }
+    }
+}
+
+/// Solves `ω_e ψ / sqrt(R² + (ω_e L)²) = I_max` for the mechanical speed;
+/// infinite when even the asymptote ψ/L stays below `I_max`.
+fn short_circuit_speed_max_rad_s(p: &ControlParams) -> f32 {
+    let m = &p.motor;
+    let i = p.limits.current_max_a;
+    let l = m.inductance_q_h;
+    let margin = m.flux_linkage_wb * m.flux_linkage_wb - i * i * l * l;
+    if margin <= 0.0 {
+        return f32::INFINITY;
+    }
+    i * m.phase_resistance_ohm / crate::math::sqrt(margin) / m.pole_pairs as f32
+}
+
+/// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
+fn periods(duration_s: f32, period_s: f32) -> u32 {
+    let n = crate::math::clamp(duration_s / period_s, 1.0, u32::MAX as f32);
+    let whole = n as u32;
+    if (whole as f32) < n { whole.saturating_add(1) } else { whole }
+}
+
+/// The whole drive state. `step` is the only thing the ISR calls.
+#[derive(Debug)]
+pub struct Controller {
+    params: ControlParams,
+    derived: Derived,
+    mode: Mode,
+    faults: FaultSet,
+    /// Conditions present at the last step, latched or not: a fault clears
+    /// only when its condition has gone.
+    present: FaultSet,
+    tick: u32,
+    /// Periods left to the next speed tick, and speed ticks left to the
+    /// next position tick (the position divider is a multiple of the speed
+    /// one): a count-down costs less than two divisions every period.
+    speed_countdown: u32,
+    position_countdown: u32,
+    encoder: EncoderTracker,
+    /// User position of encoder count zero (`SetHome`, homing). Kept apart
+    /// from the count, which the electrical angle is taken from.
+    home_offset_m: f32,
+    current_loop: CurrentLoop,
+    speed_loop: SpeedLoop,
+    trajectory: ScurveMove,
+    move_ticks: u32,
+    /// External shift (`SetPositionShift`), the target…
+    position_shift_m: f32,
+    /// …and what is applied, moving towards it at the compensation's rate
+    /// limit so a new shift never arrives as a step.
+    external_shift_applied_m: f32,
+    compensator: Compensator,
+    /// Total shift applied last position period (external + observer).
+    applied_shift_m: f32,
+    position_command_m: f32,
+    position_reference_m: f32,
+    speed_reference_rad_s: f32,
+    acceleration_reference_rad_s2: f32,
+    /// Coulomb friction fed forward to the speed loop, from the position period.
+    friction_ff_n_m: f32,
+    current_reference: Dq,
+    current_dq: Dq,
+    voltage_dq: Dq,
+    limits: LimitFlags,
+    /// A clamped MoveTo is reported until the next telemetry record is cut.
+    pending_limits: LimitFlags,
+    load: LoadEstimator,
+    thermal: ThermalModel,
+    /// The controlled stop in progress (mode `Stopping`).
+    stop: StopRamp,
+    /// Consecutive periods with |i_a + i_b + i_c| over its bound.
+    current_sum_count: u32,
+    /// How long |ω_ref − ω| has been over its threshold.
+    speed_error_s: f32,
+    /// How long the encoder has shown no count while told to turn.
+    no_count_s: f32,
+    /// How long the back-EMF has shown more speed than the encoder.
+    emf_mismatch_s: f32,
+    count_at_last_speed_tick: i32,
+    /// The q-current bounds the speed loop had last (thermal foldback,
+    /// the d-current taken off the current circle, regeneration, homing).
+    q_current_min_a: f32,
+    q_current_max_a: f32,
+    open_phase: OpenPhaseMonitor,
+    /// The open-phase check's last verdict (it keeps it through windows
+    /// that cannot judge).
+    open_phase_present: bool,
+    /// Periods of active short circuit left after a bridge-off fault.
+    short_circuit_periods: u32,
+    /// PWM periods since the brake was told to open (Running, Stopping) or
+    /// to close (Braking, once the stop ramp is at rest).
+    brake_periods: u32,
+    /// The brake output while driving: closed during `Enable`'s preload.
+    brake_release: bool,
+    /// q current that held the load when the brake last closed, or that the
+    /// commutation measured: `Enable` builds it before the brake lets go.
+    hold_current_q_a: f32,
+    bus_voltage_v: f32,
+    terminal_position_m: Option<f32>,
+    home_switch: Option<bool>,
+    power_stage_temperature_c: Option<f32>,
+    // ---- start-up steps (`lifecycle.rs`) ----
+    readiness: Readiness,
+    /// `StartUp`: run the remaining steps one after another.
+    start_up_sequence: bool,
+    calibration: CurrentCalibration,
+    current_offset_a: [f32; 3],
+    commutation: Commutation,
+    homing: Homing,
+    /// Homing found its reference and is backing off to the stroke.
+    homing_backing_off: bool,
+    telemetry: Telemetry,
+}
+
+impl Controller {
+    /// A controller for `params`. Invalid parameters give a controller that
+    /// latches `INVALID_PARAMS` and never enables (the firmware must still
+    /// boot and log why); use [`Controller::try_new`] to get the reason.
+    pub fn new(params: ControlParams) -> Self {
+        match Self::try_new(params) {
+            Ok(c) => c,
+            Err(_) => {
+                let mut c = Self::build(ControlParams::DEFAULT);
+                c.faults = FaultSet::INVALID_PARAMS;
+                c.present = FaultSet::INVALID_PARAMS;
+                c.mode = Mode::Fault;
+                c.params = params;
+                c
+            }
+        }
+    }
+
+    /// A controller for `params`, or the first parameter that is unusable.
+    pub fn try_new(params: ControlParams) -> Result<Self, ParamError> {
+        ValidatedParams::new(params).map(Self::from_validated)
+    }
+
+    /// A controller for a set already checked (at compile time, in the
+    /// firmware).
+    pub fn from_validated(params: ValidatedParams) -> Self {
+        Self::build(*params.get())
+    }
+
+    fn build(params: ControlParams) -> Self {
+        let mut readiness = Readiness::NONE;
+        if params.startup.commutation_known {
+            // An absolute encoder: offset and currents come commissioned.
+            readiness.insert(Readiness::COMMUTATED);
+            readiness.insert(Readiness::CURRENTS_CALIBRATED);
+        }
+        if params.startup.homed {
+            readiness.insert(Readiness::HOMED);
+        }
+        let derived = Derived::of(&params);
+        Self {
+            derived,
+            mode: Mode::Disabled,
+            faults: FaultSet::NONE,
+            present: FaultSet::NONE,
+            tick: 0,
+            // The first ticks fall on period `divider`, as `tick % divider == 0` did.
+            speed_countdown: params.rates.speed_loop_divider,
+            position_countdown: derived.speed_ticks_per_position_tick,
+            encoder: EncoderTracker::new(),
+            home_offset_m: 0.0,
+            current_loop: CurrentLoop::new(),
+            speed_loop: SpeedLoop::new(&params),
+            trajectory: ScurveMove::hold(0.0),
+            move_ticks: 0,
+            position_shift_m: 0.0,
+            external_shift_applied_m: 0.0,
+            compensator: Compensator::new(params.compensation.enabled_at_start),
+            applied_shift_m: 0.0,
+            position_command_m: 0.0,
+            position_reference_m: 0.0,
+            speed_reference_rad_s: 0.0,
+            acceleration_reference_rad_s2: 0.0,
+            friction_ff_n_m: 0.0,
+            current_reference: Dq::default(),
+            current_dq: Dq::default(),
+            voltage_dq: Dq::default(),
+            limits: LimitFlags::NONE,
+            pending_limits: LimitFlags::NONE,
+            load: LoadEstimator::new(),
+            thermal: ThermalModel::new(),
+            stop: StopRamp::default(),
+            current_sum_count: 0,
+            speed_error_s: 0.0,
+            no_count_s: 0.0,
+            emf_mismatch_s: 0.0,
+            count_at_last_speed_tick: 0,
+            q_current_min_a: 0.0,
+            q_current_max_a: 0.0,
+            open_phase: OpenPhaseMonitor::new(),
+            open_phase_present: false,
+            brake_periods: 0,
+            brake_release: true,
+            hold_current_q_a: expected_load_current_q_a(&params),
+            short_circuit_periods: 0,
+            bus_voltage_v: 0.0,
+            terminal_position_m: None,
+            home_switch: None,
+            power_stage_temperature_c: None,
+            readiness,
+            start_up_sequence: false,
+            calibration: CurrentCalibration::new(derived.calibration_samples),
+            current_offset_a: [0.0; 3],
+            commutation: Commutation::new(),
+            homing: Homing::new(0.0),
+            homing_backing_off: false,
+            telemetry: Telemetry::default(),
+            params,
+        }
+    }
+
+    pub fn params(&self) -> &ControlParams {
+        &self.params
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn faults(&self) -> FaultSet {
+        self.faults
+    }
+
+    /// Start-up steps done.
+    pub fn readiness(&self) -> Readiness {
+        self.readiness
+    }
+
+    /// Phase-current offsets the calibration measured, amperes: the host
+    /// subtracts them from the currents it reports (zero until calibrated).
+    pub fn current_offsets_a(&self) -> [f32; 3] {
+        self.current_offset_a
+    }
+
+    /// The last telemetry record (refreshed every position period).
+    pub fn telemetry(&self) -> Telemetry {
+        self.telemetry
+    }
+
+    /// Motor-side position `L θ_m / 2π` in the user's frame (home offset
+    /// applied).
+    pub fn motor_position_m(&self) -> f32 {
+        self.encoder.position_counts() * self.derived.metres_per_count + self.home_offset_m
+    }
+
+    pub fn speed_rad_s(&self) -> f32 {
+        self.encoder.speed_counts_s() * self.derived.rad_per_count
+    }
+
+    /// Electrical angle the current loop uses now (offset applied).
+    pub fn electrical_angle_rad(&self) -> f32 {
+        crate::foc::wrap_pi(self.rotor_state().electrical_angle_rad)
+    }
+
+    /// True while a planned move has time left.
+    pub fn move_in_progress(&self) -> bool {
+        (self.move_ticks as f32) * self.derived.position_period_s < self.trajectory.duration_s()
+    }
+
+    /// Normalised winding temperature of the I²t model (1 = continuous rating).
+    pub fn thermal_level(&self) -> f32 {
+        self.thermal.level()
+    }
+
+    /// The board calls this when a sample arrived before the previous step
+    /// finished.
+    pub fn report_isr_overrun(&mut self) {
+        self.raise(FaultSet::ISR_OVERRUN);
+    }
+
+    /// The board calls this when its comparator break switched the outputs
+    /// off in hardware (timer break flag seen in the ISR).
+    pub fn report_bridge_break(&mut self) {
+        self.raise(FaultSet::BRIDGE_BREAK);
+    }
+
+    /// The board calls this at start-up if the independent watchdog caused
+    /// the last reset: the drive then waits for an explicit clear.
+    pub fn report_watchdog_reset(&mut self) {
+        self.raise(FaultSet::WATCHDOG_RESET);
+    }
+
+    /// The host calls this once the board is up. Nothing moves unless the
+    /// configuration asks for it (`startup.run_at_power_up`).
+    pub fn power_up(&mut self) -> Result<CommandOutcome, CommandError> {
+        if self.params.startup.run_at_power_up {
+            self.command(Command::StartUp)
+        } else {
+            Ok(CommandOutcome::Accepted)
+        }
+    }
+
+    /// Advances one PWM period. Called from the ADC interrupt; bounded time,
+    /// no waiting, no panics.
+    pub fn step(&mut self, s: &SensorSample) -> PwmCommand {
+        self.tick = self.tick.wrapping_add(1);
+        let present = self.check_inputs(s);
+        let enc = self.encoder.update(
+            &self.params.encoder,
+            s.encoder_count,
+            self.derived.pwm_period_s,
+            self.params.faults.encoder_max_step_counts,
+            self.params.faults.encoder_max_innovation_counts,
+        );
+        if enc.implausible_step {
+            // A jump is an event, not a standing condition: it can be cleared.
+            self.raise(FaultSet::ENCODER_JUMP);
+        }
+        let (speed_tick, position_tick) = self.next_ticks();
+        if position_tick {
+            self.home_switch = s.home_switch;
+            self.power_stage_temperature_c = s.power_stage_temperature_c;
+        }
+        self.latch_conditions(present, s, speed_tick, position_tick);
+
+        // Brake output: open (true) from `current_period` while driving,
+        // closed (false) in `PwmCommand::OFF` and the short circuit; only
+        // `Braking`, `Enable`'s preload and the start-up steps decide per
+        // period. Without a brake nothing is wired to it.
+        let out = match self.mode {
+            Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
+            Mode::Disabled | Mode::Fault => self.bridge_off(),
+            Mode::Calibrating => self.calibration_period(s),
+            Mode::Aligning => self.commutation_period(s, position_tick),
+            Mode::Running | Mode::Stopping | Mode::Homing => {
+                if position_tick {
+                    self.brake_tick();
+                }
+                self.run_period(s, position_tick, speed_tick)
+            }
+            Mode::Braking => self.braking_period(s, position_tick, speed_tick),
+        };
+        if position_tick {
+            self.cut_telemetry();
+        }
+        out
+    }
+
+    /// Counts the period down to the speed and position ticks.
+    #[inline]
+    fn next_ticks(&mut self) -> (bool, bool) {
+        self.speed_countdown = self.speed_countdown.wrapping_sub(1);
+        let speed_tick = self.speed_countdown == 0;
+        let mut position_tick = false;
+        if speed_tick {
+            self.speed_countdown = self.params.rates.speed_loop_divider;
+            self.position_countdown = self.position_countdown.wrapping_sub(1);
+            position_tick = self.position_countdown == 0;
+            if position_tick {
+                self.position_countdown = self.derived.speed_ticks_per_position_tick;
+            }
+        }
+        (speed_tick, position_tick)
+    }
+}
+
+/// q current that holds `startup.expected_load_force_n` at the screw, in
+/// the direction the encoder counts up (positive rotation extends the rod,
+/// a positive load opposes extension).
+fn expected_load_current_q_a(p: &ControlParams) -> f32 {
+    let torque = p.startup.expected_load_force_n * p.metres_per_rad();
+    torque / p.torque_constant_n_m_a()
+}

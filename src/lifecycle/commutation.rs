@@ -1,0 +1,322 @@
+//! Commutation with the load on the rod and the brake closed.
+//!
+//! 1. Brake closed, a test current vector of angle `φ` swept through one
+//!    electrical turn forwards and back. The brake disc's compliance lets the
+//!    rotor twist by `A sin(φ − θ_e) + C`: the first harmonic gives the rotor's
+//!    electrical angle `θ_e`, whatever constant torque the load puts on the
+//!    brake (it goes into `C`). No twist at all: no encoder signal. Too much:
+//!    the disc slipped.
+//! 2. A stationary current vector, pointed so its torque balances the expected
+//!    load, takes over from the brake. It does not use the encoder, so a
+//!    reversed encoder or a wrong pole count cannot make it run away.
+//! 3. The vector turns by a small known electrical angle and back: the rotor
+//!    follows like a stepper. The encoder must show `Δφ / p` the right way
+//!    round (direction, pole pairs); nothing at all: the rotor is blocked.
+//! 4. Handover: the present vector, seen in the rotor frame, is the current
+//!    reference field-oriented control starts from (bumpless); its q part is
+//!    the measured load.
+//!
+//! A failure after the brake let go holds the vector while the brake closes,
+//! then reports: the load never hangs on nothing.
+
+use crate::math::{atan2, sincos, sqrt, wrap_pi};
+use crate::params::ControlParams;
+use crate::protection::FaultSet;
+use core::f32::consts::PI;
+
+/// Sampled once per position period.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CommutationInput {
+    /// Tracked multi-turn position, counts (direction applied).
+    pub position_counts: f32,
+    /// Tracked position within a turn, as the rotor angle uses it.
+    pub counts_in_turn: f32,
+    pub speed_counts_s: f32,
+    /// q current that would hold the expected load (signed: positive pushes
+    /// the way the encoder counts up).
+    pub load_hint_q_a: f32,
+}
+
+/// What the controller applies until the next position period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommutationOutput {
+    /// Stationary current vector: magnitude, amperes…
+    pub current_a: f32,
+    /// …at this electrical angle in the controller's frame.
+    pub angle_rad: f32,
+    pub brake_release: bool,
+    pub done: Option<Result<CommutationResult, FaultSet>>,
+}
+
+/// A commutation that passed every check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommutationResult {
+    /// Electrical angle at count zero, for `encoder.electrical_offset_rad`.
+    pub electrical_offset_rad: f32,
+    /// The hold vector in the rotor frame at handover (bumpless start).
+    pub current_d_a: f32,
+    pub current_q_a: f32,
+    /// Twist amplitude of the sweep, counts.
+    pub twist_amplitude_counts: f32,
+    /// Measured / expected check rotation (1 = right direction and poles).
+    pub rotation_ratio: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Phase {
+    RampIn,
+    SettleBeforeSweep,
+    Sweep,
+    BuildHold,
+    Release,
+    CheckOut,
+    SettleOut,
+    CheckBack,
+    SettleBack,
+    /// Holding the vector while the brake closes, then `done` with the fault.
+    Failing(FaultSet),
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Commutation {
+    phase: Phase,
+    /// Time in the present phase, and in the whole step.
+    phase_s: f32,
+    total_s: f32,
+    still_s: f32,
+    x0_counts: f32,
+    turn0_counts: f32,
+    sum_cos: f32,
+    sum_sin: f32,
+    sum_x: f32,
+    n: u32,
+    offset_rad: f32,
+    amplitude_counts: f32,
+    /// Vector at the start and the end of `BuildHold`.
+    from: (f32, f32),
+    hold_a: f32,
+    hold_angle_rad: f32,
+    x_hold_counts: f32,
+    ratio: f32,
+    output: CommutationOutput,
+}
+
+impl Commutation {
+    pub fn new() -> Self {
+        Self {
+            phase: Phase::RampIn,
+            phase_s: 0.0,
+            total_s: 0.0,
+            still_s: 0.0,
+            x0_counts: 0.0,
+            turn0_counts: 0.0,
+            sum_cos: 0.0,
+            sum_sin: 0.0,
+            sum_x: 0.0,
+            n: 0,
+            offset_rad: 0.0,
+            amplitude_counts: 0.0,
+            from: (0.0, 0.0),
+            hold_a: 0.0,
+            hold_angle_rad: 0.0,
+            x_hold_counts: 0.0,
+            ratio: 0.0,
+            output: CommutationOutput { current_a: 0.0, angle_rad: 0.0, brake_release: false, done: None },
+        }
+    }
+
+    /// The vector to apply now (between position periods).
+    pub fn output(&self) -> CommutationOutput {
+        self.output
+    }
+
+    fn enter(&mut self, phase: Phase) {
+        self.phase = phase;
+        self.phase_s = 0.0;
+        self.still_s = 0.0;
+    }
+
+    /// Fails the step; once the brake was open, through `Failing`.
+    fn fail(&mut self, fault: FaultSet) {
+        if self.output.brake_release {
+            self.output.brake_release = false;
+            self.enter(Phase::Failing(fault));
+        } else {
+            self.output = CommutationOutput { current_a: 0.0, angle_rad: 0.0, brake_release: false, done: Some(Err(fault)) };
+        }
+    }
+
+    /// True once the rotor has been slower than the settle speed for
+    /// `settle_s`; fails the step after `settle_timeout_s`.
+    fn settled(&mut self, p: &ControlParams, s: &CommutationInput, dt_s: f32, counts_per_rad: f32) -> bool {
+        let c = &p.commutation;
+        if s.speed_counts_s.abs() < c.settle_speed_rad_s * counts_per_rad {
+            self.still_s += dt_s;
+        } else {
+            self.still_s = 0.0;
+        }
+        if self.still_s >= c.settle_s {
+            return true;
+        }
+        if self.phase_s > c.settle_timeout_s {
+            self.fail(FaultSet::LIFECYCLE_TIMEOUT);
+        }
+        false
+    }
+
+    /// One position period. `dt_s` is the position period.
+    pub fn update(&mut self, p: &ControlParams, s: &CommutationInput, dt_s: f32) -> CommutationOutput {
+        if self.output.done.is_some() {
+            return self.output;
+        }
+        let c = &p.commutation;
+        let cpr = p.encoder.counts_per_rev as f32;
+        let counts_per_rad = cpr / (2.0 * PI);
+        let pole_pairs = p.motor.pole_pairs as f32;
+        let electrical_rad_per_count = pole_pairs / counts_per_rad;
+        self.phase_s += dt_s;
+        self.total_s += dt_s;
+        if self.total_s > c.timeout_s && !matches!(self.phase, Phase::Failing(_)) {
+            self.fail(FaultSet::LIFECYCLE_TIMEOUT);
+        }
+        // While the brake is meant to hold, the shaft may only twist.
+        let brake_holding = matches!(self.phase, Phase::RampIn | Phase::SettleBeforeSweep | Phase::Sweep | Phase::BuildHold);
+        let twist_counts = c.max_twist_rad * counts_per_rad;
+        // The first sample is the shaft at rest on the brake, load included.
+        if self.total_s <= dt_s {
+            self.x0_counts = s.position_counts;
+        } else if brake_holding && (s.position_counts - self.x0_counts).abs() > twist_counts {
+            self.fail(FaultSet::BRAKE_SLIP);
+        }
+        if self.output.done.is_some() {
+            return self.output;
+        }
+        match self.phase {
+            Phase::RampIn => {
+                let k = crate::math::min(self.phase_s / c.ramp_s, 1.0);
+                self.output.current_a = k * c.test_current_a;
+                self.output.angle_rad = 0.0;
+                if k >= 1.0 {
+                    self.enter(Phase::SettleBeforeSweep);
+                }
+            }
+            Phase::SettleBeforeSweep => {
+                if self.settled(p, s, dt_s, counts_per_rad) {
+                    self.turn0_counts = s.counts_in_turn + (self.x0_counts - s.position_counts);
+                    self.enter(Phase::Sweep);
+                }
+            }
+            Phase::Sweep => {
+                let t = self.phase_s / c.sweep_s;
+                if t < 2.0 {
+                    // One turn forwards, one back: the rotor's lag behind the
+                    // vector cancels between the two.
+                    let phi = if t < 1.0 { 2.0 * PI * t } else { 2.0 * PI * (2.0 - t) };
+                    let x = s.position_counts - self.x0_counts;
+                    let (sin_phi, cos_phi) = sincos(self.output.angle_rad);
+                    self.sum_cos += x * cos_phi;
+                    self.sum_sin += x * sin_phi;
+                    self.sum_x += x;
+                    self.n = self.n.saturating_add(1);
+                    self.output.angle_rad = phi;
+                } else {
+                    self.finish_sweep(p, s, c.hold_current_d_a, electrical_rad_per_count);
+                }
+            }
+            Phase::BuildHold => {
+                let k = crate::math::min(self.phase_s / c.ramp_s, 1.0);
+                let (ts, tc) = sincos(self.hold_angle_rad);
+                let (a0, b0) = self.from;
+                let a = a0 + k * (self.hold_a * tc - a0);
+                let b = b0 + k * (self.hold_a * ts - b0);
+                self.output.current_a = sqrt(a * a + b * b);
+                self.output.angle_rad = atan2(b, a);
+                if k >= 1.0 {
+                    self.output.brake_release = true;
+                    self.enter(Phase::Release);
+                }
+            }
+            Phase::Release => {
+                if self.phase_s >= p.brake.release_time_s && self.settled(p, s, dt_s, counts_per_rad) {
+                    self.x_hold_counts = s.position_counts;
+                    self.enter(Phase::CheckOut);
+                }
+            }
+            Phase::CheckOut | Phase::CheckBack => {
+                let k = crate::math::min(self.phase_s / c.check_time_s, 1.0);
+                let (_, cos_k) = sincos(PI * k);
+                let eased = 0.5 * (1.0 - cos_k);
+                let out = if self.phase == Phase::CheckOut { eased } else { 1.0 - eased };
+                self.output.angle_rad = self.hold_angle_rad + out * c.check_angle_rad;
+                if k >= 1.0 {
+                    let next = if self.phase == Phase::CheckOut { Phase::SettleOut } else { Phase::SettleBack };
+                    self.enter(next);
+                }
+            }
+            Phase::SettleOut => {
+                if self.settled(p, s, dt_s, counts_per_rad) {
+                    self.ratio = (s.position_counts - self.x_hold_counts) * electrical_rad_per_count / c.check_angle_rad;
+                    if self.ratio.abs() < c.blocked_ratio {
+                        self.fail(FaultSet::ROTOR_BLOCKED);
+                    } else if self.ratio < 0.0 {
+                        self.fail(FaultSet::WRONG_DIRECTION);
+                    } else if (self.ratio - 1.0).abs() > c.ratio_tolerance {
+                        self.fail(FaultSet::WRONG_POLE_PAIRS);
+                    } else {
+                        self.enter(Phase::CheckBack);
+                    }
+                }
+            }
+            Phase::SettleBack => {
+                if self.settled(p, s, dt_s, counts_per_rad) {
+                    let theta = self.offset_rad + s.counts_in_turn * electrical_rad_per_count;
+                    let (sd, cd) = sincos(self.hold_angle_rad - theta);
+                    self.output.done = Some(Ok(CommutationResult {
+                        electrical_offset_rad: self.offset_rad,
+                        current_d_a: self.hold_a * cd,
+                        current_q_a: self.hold_a * sd,
+                        twist_amplitude_counts: self.amplitude_counts,
+                        rotation_ratio: self.ratio,
+                    }));
+                }
+            }
+            Phase::Failing(fault) => {
+                // The vector keeps holding until the brake has closed.
+                if self.phase_s >= 2.0 * p.brake.engage_time_s {
+                    self.output = CommutationOutput { current_a: 0.0, angle_rad: 0.0, brake_release: false, done: Some(Err(fault)) };
+                }
+            }
+        }
+        self.output
+    }
+
+    /// Fits the sweep's first harmonic and points the hold vector.
+    fn finish_sweep(&mut self, p: &ControlParams, s: &CommutationInput, hold_d_a: f32, electrical_rad_per_count: f32) {
+        let n = crate::math::max(self.n as f32, 1.0);
+        let a = 2.0 * self.sum_cos / n;
+        let b = 2.0 * self.sum_sin / n;
+        let mean = self.sum_x / n;
+        self.amplitude_counts = sqrt(a * a + b * b);
+        if !(self.amplitude_counts >= p.commutation.min_amplitude_counts) {
+            self.fail(FaultSet::ENCODER_NO_SIGNAL);
+            return;
+        }
+        // x = A sin(φ − θ) + C: the fit's θ is the electrical angle at the
+        // sweep's mean position.
+        let theta_mean = atan2(-a, b);
+        self.offset_rad = wrap_pi(theta_mean - (self.turn0_counts + mean) * electrical_rad_per_count);
+        let theta_now = self.offset_rad + s.counts_in_turn * electrical_rad_per_count;
+        let q = s.load_hint_q_a;
+        self.hold_a = sqrt(hold_d_a * hold_d_a + q * q);
+        self.hold_angle_rad = theta_now + atan2(q, hold_d_a);
+        let (si, co) = sincos(self.output.angle_rad);
+        self.from = (self.output.current_a * co, self.output.current_a * si);
+        self.enter(Phase::BuildHold);
+    }
+}
+
+impl Default for Commutation {
+    fn default() -> Self {
+        Self::new()
+    }
+}

@@ -1,0 +1,101 @@
+//! Homing on an incremental encoder: drive towards the end stop (or the home
+//! switch) at a constant speed with a bounded current, and take the contact
+//! (or the switch edge) as the reference.
+//!
+//! The contact is judged when the command has run ahead of the rod by
+//! `contact_following_m` and the rotor has been still for `contact_time_s`:
+//! by then the speed loop sits on its homing current bound, so the push
+//! into the stop — and with it the stop's and the drive train's
+//! deflection — is the same every time. That is what makes it repeatable.
+
+use crate::params::{ControlParams, HomingMethod};
+use crate::protection::FaultSet;
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HomingInput {
+    /// Motor-side position in the controller's present frame.
+    pub position_m: f32,
+    pub speed_rad_s: f32,
+    pub home_switch: Option<bool>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomingOutput {
+    /// Position command and its velocity for the position loop.
+    pub position_m: f32,
+    pub velocity_m_s: f32,
+    /// `Ok(x)`: the home point lies at `x` in the present frame.
+    pub done: Option<Result<f32, FaultSet>>,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Homing {
+    start_m: f32,
+    command_m: f32,
+    elapsed_s: f32,
+    contact_s: f32,
+    switch_was: Option<bool>,
+    done: Option<Result<f32, FaultSet>>,
+}
+
+/// Time to reach the approach speed: a step in velocity would kick the rod
+/// mode (≈ 29 Hz); 50 ms is one and a half of its periods.
+const APPROACH_RAMP_S: f32 = 0.05;
+
+impl Homing {
+    pub fn new(start_m: f32) -> Self {
+        Self { start_m, command_m: start_m, elapsed_s: 0.0, contact_s: 0.0, switch_was: None, done: None }
+    }
+
+    pub fn update(&mut self, p: &ControlParams, s: &HomingInput, dt_s: f32) -> HomingOutput {
+        let h = &p.homing;
+        let dir = h.direction as f32;
+        if self.done.is_some() {
+            return HomingOutput { position_m: self.command_m, velocity_m_s: 0.0, done: self.done };
+        }
+        self.elapsed_s += dt_s;
+        let v = h.speed_m_s * crate::math::min(self.elapsed_s / APPROACH_RAMP_S, 1.0);
+        let travelled = (s.position_m - self.start_m) * dir;
+        match h.method {
+            HomingMethod::HardStop => {
+                let ahead = (self.command_m - s.position_m) * dir;
+                if ahead > h.contact_following_m && s.speed_rad_s.abs() < h.contact_speed_rad_s {
+                    self.contact_s += dt_s;
+                } else {
+                    self.contact_s = 0.0;
+                }
+                if self.contact_s >= h.contact_time_s {
+                    self.done = Some(Ok(s.position_m));
+                }
+            }
+            HomingMethod::Switch => match s.home_switch {
+                // No switch wired: the method cannot work; say so at once.
+                None => self.done = Some(Err(FaultSet::HOMING_FAILED)),
+                Some(closed) => {
+                    if closed && self.switch_was == Some(false) {
+                        self.done = Some(Ok(s.position_m));
+                    } else if closed && self.switch_was.is_none() {
+                        // Already on the switch at the start: back off first
+                        // would need a second pass; refuse instead of guessing.
+                        self.done = Some(Err(FaultSet::HOMING_FAILED));
+                    }
+                    self.switch_was = Some(closed);
+                }
+            },
+        }
+        if self.done.is_none() && travelled.abs() > h.travel_max_m {
+            self.done = Some(Err(FaultSet::HOMING_FAILED));
+        }
+        if self.done.is_none() {
+            // The command never runs more than the contact distance plus a
+            // margin ahead of a rod that does not follow.
+            let lead = (self.command_m - s.position_m) * dir;
+            if lead < 4.0 * h.contact_following_m {
+                self.command_m += dir * v * dt_s;
+            }
+            return HomingOutput { position_m: self.command_m, velocity_m_s: dir * v, done: None };
+        }
+        self.command_m = s.position_m;
+        HomingOutput { position_m: self.command_m, velocity_m_s: 0.0, done: self.done }
+    }
+}
