@@ -6,9 +6,11 @@
 //! leaves behind, `config` reads the rig file, `trainer` fits the error observer.
 
 pub mod config;
+pub mod parallel;
 pub mod diagnose;
 pub mod fault_injection;
 pub mod plant;
+pub mod power_up;
 pub mod report;
 pub mod scenario;
 pub mod sim;

@@ -46,6 +46,27 @@ enum Cmd {
     /// Train the IBAS-BPNN error observer (paper §4.1) on a dataset and write
     /// the firmware's model source. Writes summary.json, model.json, model.rs
     /// and test_predictions.csv to --out.
+    /// Power-ups under the rated vertical load from random rotor angles and
+    /// rod positions, plus the failure cases; writes summary.json, cases.md.
+    PowerUp {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// Successful power-ups to run (random rotor angle, rod, encoder zero).
+        #[arg(long, default_value_t = 20)]
+        power_ups: usize,
+        /// Rods are drawn from this range of the stroke, metres.
+        #[arg(long, default_value_t = 0.005)]
+        rod_min_m: f64,
+        #[arg(long, default_value_t = 0.495)]
+        rod_max_m: f64,
+        /// Homings on one rig for the repeatability figure (0: none).
+        #[arg(long, default_value_t = 10)]
+        homings: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     Train(host_sim::trainer::TrainArgs),
     /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
@@ -78,6 +99,9 @@ fn main() -> Result<()> {
             print!("{}", host_sim::fault_injection::report::markdown_table(&rows));
             println!("{} of {} scenarios meet their requirement", rows.iter().filter(|r| r.passed).count(), rows.len());
             Ok(())
+        }
+        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed } => {
+            power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
@@ -146,4 +170,26 @@ fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64, observer: bool) -> Re
         Some(why) => anyhow::bail!("the paper run stopped early: {why} (the trace up to there is in {})", out.display()),
         None => Ok(()),
     }
+}
+
+fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64) -> Result<()> {
+    use host_sim::power_up;
+    let (lo, hi) = rod_m;
+    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 0.5) {
+        anyhow::bail!("--rod-min-m / --rod-max-m: need 0 <= min < max <= 0.5 (the stroke), got {lo} / {hi}");
+    }
+    let rig = RigConfig::load_or_nominal(params.as_ref())?;
+    let t0 = std::time::Instant::now();
+    let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
+    let rows = host_sim::parallel::map(&cases, |c| power_up::run_case(&rig, c))?;
+    let zeros = if homings > 0 { power_up::homing_repeatability(&rig, &cases[0], homings)? } else { vec![] };
+    let summary = power_up::summarise(&rows, &zeros, t0.elapsed().as_secs_f64());
+    power_up::write_report(&summary, &rows, &out)?;
+    let mut brief = summary.clone();
+    if let Some(m) = brief.as_object_mut() {
+        m.remove("cases");
+    }
+    println!("{}", serde_json::to_string_pretty(&brief)?);
+    print!("{}", std::fs::read_to_string(out.join("cases.md"))?);
+    Ok(())
 }

@@ -44,6 +44,10 @@ pub struct ClosedLoop {
     /// Largest |true phase current| over the last period's integration
     /// steps (with a break modelled), else at its end.
     period_peak_current_a: f64,
+    /// Phases b and c swapped between the drive and the motor (a wiring
+    /// mistake): the drive's b duty drives the motor's c phase and reads
+    /// its current, and the other way round.
+    swap_phases_bc: bool,
 }
 
 impl ClosedLoop {
@@ -60,6 +64,7 @@ impl ClosedLoop {
             hardware_break_a: None,
             hardware_break_period: None,
             period_peak_current_a: 0.0,
+            swap_phases_bc: false,
         }
     }
 
@@ -70,6 +75,11 @@ impl ClosedLoop {
     /// each period is then one `Plant::advance`, as before.
     pub fn set_hardware_break_a(&mut self, trip_a: Option<f64>) {
         self.hardware_break_a = trip_a;
+    }
+
+    /// Wires the motor with phases b and c swapped (see `swap_phases_bc`).
+    pub fn set_swap_phases_bc(&mut self, swapped: bool) {
+        self.swap_phases_bc = swapped;
     }
 
     /// Largest |true phase current| during the last period: over its
@@ -149,12 +159,18 @@ impl ClosedLoop {
         for (i, o) in sample.phase_current_a.iter_mut().zip(offsets) {
             *i -= o;
         }
+        if self.swap_phases_bc {
+            sample.phase_current_a.swap(1, 2);
+        }
         corrupt(&mut sample);
         // The board's ISR reads the timer's break flag before the step.
         if self.hardware_break_period.is_some() {
             self.controller.report_bridge_break();
         }
-        let cmd = self.controller.step(&sample);
+        let mut cmd = self.controller.step(&sample);
+        if self.swap_phases_bc {
+            cmd.duty.swap(1, 2);
+        }
         self.advance_period();
         self.pending = if self.hardware_break_period.is_some() { broken(&cmd) } else { cmd };
         self.periods += 1;

@@ -73,7 +73,9 @@ fn a_move_waits_for_the_brake_to_open() {
     assert!(cl.plant.state().brake_engaged);
     cl.controller.command(Command::Enable).unwrap();
     cl.controller.command(Command::MoveTo { position_m: 0.3 }).unwrap();
-    let release = f64::from(rig.control.brake.release_time_s);
+    // The hold current builds for the preload time with the brake closed,
+    // then the brake needs its release time.
+    let release = f64::from(rig.control.brake.preload_time_s + rig.control.brake.release_time_s);
     let mut first_motion = None;
     let mut start = None;
     for k in 0..seconds(&cl, 0.3) {

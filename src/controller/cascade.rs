@@ -6,7 +6,7 @@ use crate::compensation::Compensator;
 use crate::foc::current_loop::RotorState;
 use crate::foc::Dq;
 use crate::io::{PwmCommand, SensorSample};
-use crate::lifecycle::{HomingInput, Readiness};
+use crate::lifecycle::HomingInput;
 use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::{position_step, TrajectorySample};
 use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
@@ -156,7 +156,7 @@ impl Controller {
             crate::math::clamp(self.position_shift_m - self.external_shift_applied_m, -step_max, step_max);
         self.applied_shift_m = observer_shift + self.external_shift_applied_m;
         let mut command = r.position_m + self.applied_shift_m;
-        if self.readiness.contains(Readiness::HOMED) {
+        if self.stroke_limits_active() {
             let l = &self.params.limits;
             let (clamped_command, clamped) = clamp_to_stroke(command, l.stroke_min_m, l.stroke_max_m);
             if clamped {

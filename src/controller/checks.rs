@@ -213,7 +213,10 @@ impl Controller {
         if self.speed_error_s >= f.speed_following_time_s {
             present.insert(FaultSet::SPEED_FOLLOWING);
         }
-        self.no_count_s = if !moved && w_ref.abs() > f.encoder_lost_speed_rad_s { self.no_count_s + dt } else { 0.0 };
+        // Homing stalls against the stop on purpose, told to turn: there the
+        // back-EMF check below judges the encoder instead.
+        let told_to_turn = w_ref.abs() > f.encoder_lost_speed_rad_s && self.mode != Mode::Homing;
+        self.no_count_s = if !moved && told_to_turn { self.no_count_s + dt } else { 0.0 };
         if self.no_count_s >= f.encoder_lost_time_s {
             self.raise(FaultSet::ENCODER_LOST);
         }
@@ -226,6 +229,13 @@ impl Controller {
             self.emf_mismatch_s = 0.0;
         }
         present
+    }
+
+    /// The stroke means something once homed; homing itself runs to the
+    /// stop and backs off from it, beyond the stroke, so the limits act from
+    /// the end of homing on.
+    pub(super) fn stroke_limits_active(&self) -> bool {
+        self.readiness.contains(crate::lifecycle::Readiness::HOMED) && self.mode != Mode::Homing
     }
 
     /// Back-EMF against the encoder: `|u − R i| / ψ` is the electrical speed
@@ -254,7 +264,7 @@ impl Controller {
         let x = self.motor_position_m();
         let l = &self.params.limits;
         let f = &self.params.faults;
-        let homed = self.readiness.contains(crate::lifecycle::Readiness::HOMED);
+        let homed = self.stroke_limits_active();
         if homed && (x < l.stroke_min_m - f.stroke_overtravel_m || x > l.stroke_max_m + f.stroke_overtravel_m) {
             present.insert(FaultSet::STROKE_OVERTRAVEL);
         }

@@ -307,6 +307,11 @@ impl Controller {
         self.readiness
     }
 
+    /// What the last commutation measured (fit, twist, check rotation).
+    pub fn commutation_report(&self) -> crate::lifecycle::CommutationReport {
+        self.commutation.report()
+    }
+
     /// Phase-current offsets the calibration measured, amperes: the host
     /// subtracts them from the currents it reports (zero until calibrated).
     pub fn current_offsets_a(&self) -> [f32; 3] {

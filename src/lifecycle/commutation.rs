@@ -9,8 +9,9 @@
 //! 2. A stationary current vector, pointed so its torque balances the expected
 //!    load, takes over from the brake. It does not use the encoder, so a
 //!    reversed encoder or a wrong pole count cannot make it run away.
-//! 3. The vector turns by a small known electrical angle and back: the rotor
-//!    follows like a stepper. The encoder must show `Δφ / p` the right way
+//! 3. The vector turns by a small known electrical angle twice and back: the
+//!    rotor follows like a stepper (the second step is measured, so the
+//!    friction lag is the same at both of its ends). The encoder must show `Δφ / p` the right way
 //!    round (direction, pole pairs); nothing at all: the rotor is blocked.
 //! 4. Handover: the present vector, seen in the rotor frame, is the current
 //!    reference field-oriented control starts from (bumpless); its q part is
@@ -62,6 +63,18 @@ pub struct CommutationResult {
     pub rotation_ratio: f32,
 }
 
+/// What the step found so far, for logs and the power-up report.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CommutationReport {
+    /// The fitted offset (valid once the sweep ended).
+    pub electrical_offset_rad: f32,
+    pub twist_amplitude_counts: f32,
+    /// Mean twist of the sweep, counts from the start.
+    pub twist_mean_counts: f32,
+    /// Check rotation: measured / expected (valid once it ran).
+    pub rotation_ratio: f32,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Phase {
     RampIn,
@@ -69,8 +82,12 @@ enum Phase {
     Sweep,
     BuildHold,
     Release,
+    /// Two equal steps forwards (the second measured: friction makes the
+    /// rotor lag the vector by the same angle at both ends), then back.
     CheckOut,
     SettleOut,
+    CheckOut2,
+    SettleOut2,
     CheckBack,
     SettleBack,
     /// Holding the vector while the brake closes, then `done` with the fault.
@@ -122,6 +139,16 @@ impl Commutation {
             x_hold_counts: 0.0,
             ratio: 0.0,
             output: CommutationOutput { current_a: 0.0, angle_rad: 0.0, brake_release: false, done: None },
+        }
+    }
+
+    pub fn report(&self) -> CommutationReport {
+        let n = crate::math::max(self.n as f32, 1.0);
+        CommutationReport {
+            electrical_offset_rad: self.offset_rad,
+            twist_amplitude_counts: self.amplitude_counts,
+            twist_mean_counts: self.sum_x / n,
+            rotation_ratio: self.ratio,
         }
     }
 
@@ -238,22 +265,35 @@ impl Commutation {
             }
             Phase::Release => {
                 if self.phase_s >= p.brake.release_time_s && self.settled(p, s, dt_s, counts_per_rad) {
-                    self.x_hold_counts = s.position_counts;
                     self.enter(Phase::CheckOut);
                 }
             }
-            Phase::CheckOut | Phase::CheckBack => {
+            Phase::CheckOut | Phase::CheckOut2 | Phase::CheckBack => {
                 let k = crate::math::min(self.phase_s / c.check_time_s, 1.0);
                 let (_, cos_k) = sincos(PI * k);
                 let eased = 0.5 * (1.0 - cos_k);
-                let out = if self.phase == Phase::CheckOut { eased } else { 1.0 - eased };
-                self.output.angle_rad = self.hold_angle_rad + out * c.check_angle_rad;
+                let steps = match self.phase {
+                    Phase::CheckOut => eased,
+                    Phase::CheckOut2 => 1.0 + eased,
+                    _ => 2.0 * (1.0 - eased),
+                };
+                self.output.angle_rad = self.hold_angle_rad + steps * c.check_angle_rad;
                 if k >= 1.0 {
-                    let next = if self.phase == Phase::CheckOut { Phase::SettleOut } else { Phase::SettleBack };
+                    let next = match self.phase {
+                        Phase::CheckOut => Phase::SettleOut,
+                        Phase::CheckOut2 => Phase::SettleOut2,
+                        _ => Phase::SettleBack,
+                    };
                     self.enter(next);
                 }
             }
             Phase::SettleOut => {
+                if self.settled(p, s, dt_s, counts_per_rad) {
+                    self.x_hold_counts = s.position_counts;
+                    self.enter(Phase::CheckOut2);
+                }
+            }
+            Phase::SettleOut2 => {
                 if self.settled(p, s, dt_s, counts_per_rad) {
                     self.ratio = (s.position_counts - self.x_hold_counts) * electrical_rad_per_count / c.check_angle_rad;
                     if self.ratio.abs() < c.blocked_ratio {

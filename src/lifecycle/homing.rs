@@ -41,6 +41,11 @@ pub struct Homing {
 /// Time to reach the approach speed: a step in velocity would kick the rod
 /// mode (≈ 29 Hz); 50 ms is one and a half of its periods.
 const APPROACH_RAMP_S: f32 = 0.05;
+/// Homing may take this many times the time the whole travel needs at the
+/// approach speed: enough for a slow, loaded lift, bounded for a stall.
+const HOMING_TIME_FACTOR: f32 = 1.5;
+/// How far past `contact_following_m` the command may lead a stalled rod.
+const CONTACT_LEAD_FACTOR: f32 = 1.5;
 
 impl Homing {
     pub fn new(start_m: f32) -> Self {
@@ -83,17 +88,23 @@ impl Homing {
                 }
             },
         }
-        if self.done.is_none() && travelled.abs() > h.travel_max_m {
+        // Travel bounds a rod that moves; time bounds one that does not (a
+        // switch that never closes while the rod rests on the stop).
+        let time_max_s = HOMING_TIME_FACTOR * h.travel_max_m / h.speed_m_s + APPROACH_RAMP_S;
+        if self.done.is_none() && (travelled.abs() > h.travel_max_m || self.elapsed_s > time_max_s) {
             self.done = Some(Err(FaultSet::HOMING_FAILED));
         }
         if self.done.is_none() {
-            // The command never runs more than the contact distance plus a
-            // margin ahead of a rod that does not follow.
+            // The command never runs more than a little past the contact
+            // distance ahead of a rod that does not follow: the push into the
+            // stop stays small, and so does the speed reference the position
+            // loop makes of the lead (far inside the speed-following trip).
             let lead = (self.command_m - s.position_m) * dir;
-            if lead < 4.0 * h.contact_following_m {
+            if lead < CONTACT_LEAD_FACTOR * h.contact_following_m {
                 self.command_m += dir * v * dt_s;
+                return HomingOutput { position_m: self.command_m, velocity_m_s: dir * v, done: None };
             }
-            return HomingOutput { position_m: self.command_m, velocity_m_s: dir * v, done: None };
+            return HomingOutput { position_m: self.command_m, velocity_m_s: 0.0, done: None };
         }
         self.command_m = s.position_m;
         HomingOutput { position_m: self.command_m, velocity_m_s: 0.0, done: self.done }

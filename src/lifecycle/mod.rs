@@ -12,7 +12,7 @@ pub mod commutation;
 pub mod homing;
 
 pub use calibration::{CurrentCalibration, CalibrationResult};
-pub use commutation::{Commutation, CommutationInput, CommutationOutput, CommutationResult};
+pub use commutation::{Commutation, CommutationInput, CommutationOutput, CommutationReport, CommutationResult};
 pub use homing::{Homing, HomingInput, HomingOutput};
 
 /// Which start-up steps are done. Read in telemetry; `Enable` needs

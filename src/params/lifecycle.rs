@@ -84,7 +84,8 @@ pub struct CommutationParams {
     pub max_twist_rad: f32,
     /// d-axis (stiffness) part of the stationary hold vector.
     pub hold_current_d_a: f32,
-    /// Electrical angle of the check move (20°: 0.07 mm of rod).
+    /// Electrical angle of each of the two check steps (0.2 rad, 11.5°:
+    /// 0.04 mm of rod each, 0.08 mm out and back).
     pub check_angle_rad: f32,
     /// Time for the check move each way (raised cosine).
     pub check_time_s: f32,

@@ -488,8 +488,8 @@ impl ControlParams {
             settle_timeout_s: 1.0,
             min_amplitude_counts: 1.5,
             max_twist_rad: 0.03,
-            hold_current_d_a: 15.0,
-            check_angle_rad: 20.0 * PI / 180.0,
+            hold_current_d_a: 25.0,
+            check_angle_rad: 0.2,
             check_time_s: 0.3,
             ratio_tolerance: 0.15,
             blocked_ratio: 0.3,
@@ -504,7 +504,7 @@ impl ControlParams {
             current_max_a: 15.0,
             contact_following_m: 0.0005,
             contact_speed_rad_s: 0.5,
-            contact_time_s: 0.05,
+            contact_time_s: 0.3,
             home_position_m: -0.010,
             backoff_m: 0.012,
             travel_max_m: 0.53,
@@ -523,7 +523,7 @@ impl ControlParams {
             regen_bus_max_v: 58.0,
             regen_power_max_w: 50.0,
             emf_speed_mismatch_rad_s: 20.0,
-            emf_mismatch_time_s: 0.004,
+            emf_mismatch_time_s: 0.02,
         },
         // Rated torque 1.27 N·m at K_t = 0.105 → 12 A continuous. A 400 W
         // servo winding's thermal time constant is minutes; 30 s is on the
