@@ -26,6 +26,25 @@ pub struct TruthRecord {
     pub phase_current_peak_a: f64,
 }
 
+/// The drive of the simulator's experiments: commissioned (offset and
+/// reference known, as with an absolute encoder), its expected load the one
+/// the plant starts with, as the user's configuration would state it.
+///
+/// The electrical offset is what a commutation would find: the drive's count
+/// starts at zero on its first sample, where the rotor sits now.
+pub fn commissioned_control(control: servo_core::ControlParams, plant: &Plant) -> servo_core::ControlParams {
+    use std::f64::consts::TAU;
+    let mut c = control.commissioned();
+    c.startup.expected_load_force_n = plant.load_force_n() as f32;
+    let cpr = f64::from(plant.params().sensors.encoder_counts_per_rev);
+    let zero = plant.bench_sensors().encoder_zero_rad;
+    let first_count = ((plant.state().theta_m_rad + zero) * cpr / TAU).round();
+    let angle_at_count_zero = first_count * TAU / cpr - zero;
+    let electrical = (f64::from(plant.params().motor.pole_pairs) * angle_at_count_zero).rem_euclid(TAU);
+    c.encoder.electrical_offset_rad = (if electrical > std::f64::consts::PI { electrical - TAU } else { electrical }) as f32;
+    c
+}
+
 /// A controller and a plant wired together.
 pub struct ClosedLoop {
     pub controller: Controller,

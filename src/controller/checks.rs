@@ -13,6 +13,12 @@ const SPEED_RATE_CAUSES: FaultSet = FaultSet(
     FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0 | FaultSet::OPEN_PHASE.0 | FaultSet::POWER_STAGE_OVERTEMP.0,
 );
 
+/// The back-EMF reading is only believed while the current loop follows its
+/// reference this closely and is off the voltage circle: a loop that cannot
+/// make its current (open lead, saturation) puts voltage on the winding that
+/// is no EMF.
+const EMF_TRUSTED_CURRENT_ERROR_A: f32 = 2.0;
+
 /// Conditions evaluated at the position-loop rate.
 const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
 
@@ -220,7 +226,10 @@ impl Controller {
         if self.no_count_s >= f.encoder_lost_time_s {
             self.raise(FaultSet::ENCODER_LOST);
         }
-        if self.emf_speed_mismatch() {
+        let tracking = (self.current_reference.q - self.current_dq.q).abs() < EMF_TRUSTED_CURRENT_ERROR_A
+            && (self.current_reference.d - self.current_dq.d).abs() < EMF_TRUSTED_CURRENT_ERROR_A
+            && !self.limits.contains(crate::protection::LimitFlags::VOLTAGE);
+        if tracking && self.emf_speed_mismatch() {
             self.emf_mismatch_s += dt;
             if self.emf_mismatch_s >= self.params.power_stage.emf_mismatch_time_s {
                 self.raise(FaultSet::ENCODER_LOST);

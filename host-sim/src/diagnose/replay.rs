@@ -71,7 +71,6 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
         control.trajectory.max_acceleration_m_s2 =
             (amax as f32).clamp(0.05, 2.0 * control.trajectory.max_acceleration_m_s2);
     }
-    let controller = Controller::try_new(control.commissioned()).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut plant = Plant::new(rig.plant.clone(), 1);
     let x0 = rig.plant.stroke.initial_position_m;
     let k = rig.plant.screw.lead_m / std::f64::consts::TAU;
@@ -80,6 +79,8 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
     let tilt0 = tilt.map_or(rig.plant.load.initial_tilt_deg, |v| v[0]);
     plant.set_external_force_n(f_ext.map_or(0.0, |v| v[0]));
     plant.set_initial_state((refx[0] - x0) / k, tilt0.to_radians());
+    let controller =
+        Controller::try_new(crate::sim::commissioned_control(control, &plant)).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
     cl.controller
         .command(Command::SetHome { position_m: (refx[0] - x0) as f32 })

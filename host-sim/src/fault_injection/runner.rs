@@ -387,7 +387,7 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
     let lead = setup.plant.screw.lead_m;
     let theta = (setup.position_m - setup.plant.stroke.initial_position_m) * TAU / lead;
     plant.set_initial_state(theta, setup.tilt_deg.to_radians());
-    let mut controller = Controller::try_new(control.commissioned()).map_err(|e| anyhow!("{}: control: {e}", sc.name))?;
+    let mut controller = Controller::try_new(crate::sim::commissioned_control(control, &plant)).map_err(|e| anyhow!("{}: control: {e}", sc.name))?;
     controller
         .command(Command::SetHome { position_m: setup.position_m as f32 })
         .map_err(|e| anyhow!("{}: homing refused: {e:?}", sc.name))?;
@@ -495,7 +495,7 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
             if t + 0.5 * dt >= started + setup.watchdog_timeout_s {
                 // Reset: outputs disabled at once, a fresh controller that
                 // knows why it restarted.
-                let mut fresh = Controller::new(control.commissioned());
+                let mut fresh = Controller::new(crate::sim::commissioned_control(control, &cl.plant));
                 fresh.report_watchdog_reset();
                 cl.controller = fresh;
                 cl.override_pending(PwmCommand::OFF);

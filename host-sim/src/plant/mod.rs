@@ -317,6 +317,10 @@ impl Plant {
         &self.state
     }
 
+    pub fn bench_sensors(&self) -> &sensors::BenchSensors {
+        &self.sensors.bench
+    }
+
     /// The bench's sensor facts (encoder zero, current bias, home switch,
     /// heat-sink temperature): none by default.
     pub fn bench_sensors_mut(&mut self) -> &mut sensors::BenchSensors {

@@ -108,7 +108,6 @@ pub fn run(rig: &RigConfig, effects: &UnmodelledEffects, exp: &Experiment, seed:
     let mut control = rig.control;
     control.trajectory.max_velocity_m_s = exp.max_velocity_m_s as f32;
     control.trajectory.max_acceleration_m_s2 = exp.max_acceleration_m_s2 as f32;
-    let controller = Controller::try_new(control.commissioned()).map_err(|e| anyhow!("control parameters: {e:?}"))?;
     let x0 = rig.plant.stroke.initial_position_m;
     let r = rig.plant.metres_per_rad();
     // Plant time starts with the settling; a warm-up counts from the log start.
@@ -117,6 +116,8 @@ pub fn run(rig: &RigConfig, effects: &UnmodelledEffects, exp: &Experiment, seed:
     let mut plant = Plant::with_effects(rig.plant.clone(), eff, seed)?;
     plant.set_external_force_n(exp.force_n(-exp.settle_s));
     plant.set_initial_state((exp.start_m - x0) / r, exp.tilt_deg.to_radians());
+    let controller =
+        Controller::try_new(crate::sim::commissioned_control(control, &plant)).map_err(|e| anyhow!("control parameters: {e:?}"))?;
     let bus = rig.plant.inverter.nominal_bus_voltage_v;
     let mut cl = ClosedLoop::new(controller, plant, bus);
     cl.controller.command(Command::SetHome { position_m: (exp.start_m - x0) as f32 }).map_err(|e| anyhow!("SetHome: {e:?}"))?;

@@ -81,11 +81,12 @@ enum Leg {
 
 /// Runs one cycle closed-loop through the control core.
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
-    let controller = Controller::try_new(rig.control.commissioned()).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut plant_params = rig.plant.clone();
     plant_params.rod.payload_mass_kg *= cycle.payload_scale;
     let mut plant = Plant::new(plant_params, cycle.seed);
     plant.set_initial_state(0.0, 90f64.to_radians());
+    let controller =
+        Controller::try_new(crate::sim::commissioned_control(rig.control, &plant)).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let bus = rig.plant.inverter.nominal_bus_voltage_v;
     let mut cl = ClosedLoop::new(controller, plant, bus);
     if let Err(e) = cl.controller.command(Command::Enable) {
