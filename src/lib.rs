@@ -20,6 +20,7 @@ pub mod filters;
 pub mod foc;
 pub mod io;
 pub mod load_estimate;
+pub mod mailbox;
 pub mod math;
 pub mod motion;
 pub mod observer;
