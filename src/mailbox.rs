@@ -321,6 +321,9 @@ impl<T> Handoff<T> {
 
     /// Exclusive access to the stored value, granted once: `None` before a
     /// value is ready and on every call after the first successful one.
+    // `&self` → `&mut T` is the point of this type: the state machine, not
+    // the borrow checker, guarantees the reference is handed out once.
+    #[allow(clippy::mut_from_ref)]
     pub fn claim(&self) -> Option<&mut T> {
         if self.state.compare_exchange(READY, CLAIMED, Ordering::Acquire, Ordering::Relaxed).is_err() {
             return None;
