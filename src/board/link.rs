@@ -158,6 +158,8 @@ pub fn split() -> Option<(ThreadLink, IsrLink)> {
 /// Moves the controller into the interrupt; it is stepped from the first
 /// period after the interrupt picks it up. Gives it back if one was
 /// installed already.
+// Giving the controller back on refusal is the point (no allocator to box it).
+#[allow(clippy::result_large_err)]
 pub fn install_controller(controller: Controller) -> Result<(), Controller> {
     CONTROLLER.put(controller)
 }

@@ -79,6 +79,10 @@ pub const PARAMS: ControlParams = ControlParams::BENCH_24V;
 /// may sit at this level: thread-mode critical sections mask by priority
 /// (BASEPRI) and leave this level, and only this one, unmasked.
 pub const PWM_IRQ_PRIORITY: Priority = Priority::P0;
+/// NVIC priority of the DMA channel interrupts embassy enables at `init`
+/// (unused here): below the PWM interrupt, inside what a critical section
+/// masks. embassy's default would be 0, level with the PWM interrupt.
+pub const DMA_IRQ_PRIORITY: Priority = Priority::P2;
 /// NVIC priority of the embassy time driver (TIM2). Any level below the PWM
 /// interrupt works; 4 leaves room for a future transport interrupt above it.
 pub const TIME_DRIVER_PRIORITY: Priority = Priority::P4;
@@ -126,8 +130,8 @@ pub fn clock_config() -> embassy_stm32::Config {
     });
     config.rcc.sys = Sysclk::PLL1_R;
     config.rcc.boost = true;
-    // Nothing here uses DMA; keep its vectors below the PWM interrupt anyway.
-    config.bdma_interrupt_priority = Priority::P2;
+    // Nothing here uses DMA, but embassy enables its vectors anyway.
+    config.bdma_interrupt_priority = DMA_IRQ_PRIORITY;
     config
 }
 
