@@ -43,6 +43,7 @@
 //! jitter). ADC1: I_U (6.5 cycles), I_W (6.5), NTC (47.5); ADC2: I_V (6.5),
 //! VBUS (47.5). I_U and I_V are sampled together at the valley, I_W 0.45 µs
 //! later; ADC1 ends last, at ≈ 2.3 µs, and its end-of-injected-sequence
+//! interrupt (`ADC1_2`, priority 0, the highest) runs the control step.
 //!
 //! # Layout (one job per file)
 //!

@@ -18,7 +18,7 @@ use embassy_stm32::rcc;
 use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
 use embassy_stm32::timer::qei::{self, Qei, QeiMode};
 use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig};
-use embassy_stm32::Peripherals;
+use embassy_stm32::{Peri, Peripherals};
 
 use super::super::link;
 use super::{
@@ -48,7 +48,9 @@ impl Board {
     pub fn new(p: Peripherals, pwm_frequency_hz: f32) -> Result<Self, BoardError> {
         // The brake pin first: driven low before anything that can take time
         // or fail (the driver is AC-coupled, so this is belt and braces).
-        let brake_pin = p.PB8;
+        // `brake::Pin` names the same pin as `brake::PORT`/`PIN`: the type
+        // annotation fails the build if the token here is another one.
+        let brake_pin: Peri<'static, brake::Pin> = p.PB8;
         brake::configure_closed();
 
         let hclk_hz = rcc::clocks(&p.RCC).hclk1.to_hertz().map(|h| h.0).unwrap_or(170_000_000);
