@@ -214,7 +214,13 @@ impl ThreadLink {
     /// interrupt answers within one PWM period, so this is ≈ 50 µs at most.
     pub fn call(&mut self, request: Request, timeout_cycles: u32) -> Result<Reply, LinkError> {
         let t0 = DWT::cycle_count();
-        let expired = || DWT::cycle_count().wrapping_sub(t0) > timeout_cycles;
+        // Each spin takes more than one cycle, so counting spins bounds the
+        // wait even if the DWT counter was never started.
+        let mut spins: u32 = 0;
+        let mut expired = || {
+            spins = spins.saturating_add(1);
+            spins > timeout_cycles || DWT::cycle_count().wrapping_sub(t0) > timeout_cycles
+        };
         // Drop a stale reply left by an earlier call that timed out.
         let _ = self.replies.try_take();
         self.next_seq = self.next_seq.wrapping_add(1);
