@@ -206,6 +206,9 @@ pub enum LinkError {
     NotTaken,
     /// No reply within the deadline (the interrupt is not running).
     NoReply,
+    /// The interrupt answered `Reply::Refused`: the request does not fit its
+    /// present state (used by helpers that expect `Reply::Done`).
+    Refused,
 }
 
 impl ThreadLink {

@@ -71,8 +71,8 @@ impl ServoBoard for Board {
     fn begin_offset_calibration(&mut self, samples: u32) -> Result<(), LinkError> {
         match self.call(Request::BeginOffsetCalibration { samples })? {
             Reply::Done => Ok(()),
-            // Refused (bridge on): reported as no answer; the caller stops.
-            _ => Err(LinkError::NoReply),
+            // Refused: the bridge is on, offsets cannot be measured now.
+            _ => Err(LinkError::Refused),
         }
     }
 
