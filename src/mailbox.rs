@@ -12,7 +12,8 @@
 //!
 //! - [`Slot`]: one value at a time from one producer to one consumer
 //!   (commands in, their outcomes back). `try_put` refuses while the
-//!   previous value has not been taken, so nothing is ever overwritten.
+//!   previous value has not been taken, so nothing is ever overwritten; the
+//!   producer may withdraw a value the consumer has not started taking.
 //! - [`TripleBuffer`]: the newest value from one writer to one reader
 //!   (telemetry out). The writer never waits or fails; the reader always
 //!   gets a whole value, the newest one published. Three buffers make both
@@ -39,27 +40,37 @@ use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 // ---------------------------------------------------------------------------
 // Slot: one value at a time, one producer, one consumer.
 
+/// Slot states. The producer writes only in `SLOT_EMPTY`; the consumer
+/// reads only in `SLOT_TAKING`, which it enters from `SLOT_FULL`; the
+/// producer may withdraw a value only from `SLOT_FULL`, i.e. before the
+/// consumer started reading it.
+const SLOT_EMPTY: u8 = 0;
+const SLOT_FULL: u8 = 1;
+const SLOT_TAKING: u8 = 2;
+
 /// A single-element single-producer/single-consumer channel.
 ///
-/// The `full` flag hands the buffer back and forth: the producer writes only
-/// while it is clear and sets it with `Release` after writing; the consumer
-/// reads only while it is set (seen with `Acquire`) and clears it with
-/// `Release` after reading. At any instant exactly one side may touch the
-/// buffer.
+/// The state hands the buffer back and forth: the producer writes only while
+/// it is empty and marks it full with `Release` after writing; the consumer
+/// claims a full buffer (`Acquire`, so the write is visible), reads it and
+/// marks it empty with `Release`. The producer can take back a value the
+/// consumer has not claimed yet ([`SlotSender::try_withdraw`]), so a request
+/// that timed out is never acted on late. At any instant exactly one side may
+/// touch the buffer.
 pub struct Slot<T> {
-    full: AtomicBool,
+    state: AtomicU8,
     split: AtomicBool,
     value: UnsafeCell<MaybeUninit<T>>,
 }
 
 // SAFETY: the buffer is accessed by one side at a time, as handed over by
-// `full` (see the type's documentation); `T: Send` because values cross
+// `state` (see the type's documentation); `T: Send` because values cross
 // contexts.
 unsafe impl<T: Send> Sync for Slot<T> {}
 
 impl<T> core::fmt::Debug for Slot<T> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Slot").field("full", &self.full.load(Ordering::Relaxed)).finish()
+        f.debug_struct("Slot").field("state", &self.state.load(Ordering::Relaxed)).finish()
     }
 }
 
@@ -72,7 +83,11 @@ impl<T: Copy> Default for Slot<T> {
 impl<T: Copy> Slot<T> {
     /// An empty slot (usable in a `static`).
     pub const fn new() -> Self {
-        Self { full: AtomicBool::new(false), split: AtomicBool::new(false), value: UnsafeCell::new(MaybeUninit::uninit()) }
+        Self {
+            state: AtomicU8::new(SLOT_EMPTY),
+            split: AtomicBool::new(false),
+            value: UnsafeCell::new(MaybeUninit::uninit()),
+        }
     }
 
     /// The producer and consumer ends. `None` after the first call: there is
@@ -100,19 +115,39 @@ impl<T: Copy> SlotSender<'_, T> {
     /// Puts `value` in the slot, or gives it back if the previous one has not
     /// been taken yet (nothing is overwritten).
     pub fn try_put(&mut self, value: T) -> Result<(), T> {
-        if self.slot.full.load(Ordering::Acquire) {
+        if self.slot.state.load(Ordering::Acquire) != SLOT_EMPTY {
             return Err(value);
         }
-        // SAFETY: `full` is clear, so the consumer will not touch the buffer
-        // until we set it below; we are the only producer (`&mut self`).
+        // SAFETY: the slot is empty, so the consumer will not touch the
+        // buffer until we mark it full below; we are the only producer
+        // (`&mut self`), and the consumer's last read finished before its
+        // Release store of EMPTY, seen above with Acquire.
         unsafe { (*self.slot.value.get()).write(value) };
-        self.slot.full.store(true, Ordering::Release);
+        self.slot.state.store(SLOT_FULL, Ordering::Release);
         Ok(())
     }
 
-    /// True once the consumer has taken the last value put.
+    /// Takes back the value put last if the consumer has not started taking
+    /// it; `None` if the slot is empty or the consumer already has it.
+    pub fn try_withdraw(&mut self) -> Option<T> {
+        if self
+            .slot
+            .state
+            .compare_exchange(SLOT_FULL, SLOT_EMPTY, Ordering::AcqRel, Ordering::Relaxed)
+            .is_err()
+        {
+            return None;
+        }
+        // SAFETY: we moved FULL→EMPTY before the consumer claimed it, so the
+        // consumer never read it, and only we write (`&mut self`); the value
+        // is the one our last `try_put` initialised.
+        Some(unsafe { (*self.slot.value.get()).assume_init() })
+    }
+
+    /// True once the consumer has taken the last value put (or it was
+    /// withdrawn).
     pub fn is_empty(&self) -> bool {
-        !self.slot.full.load(Ordering::Acquire)
+        self.slot.state.load(Ordering::Acquire) == SLOT_EMPTY
     }
 }
 
@@ -130,14 +165,19 @@ impl<T> core::fmt::Debug for SlotReceiver<'_, T> {
 impl<T: Copy> SlotReceiver<'_, T> {
     /// Takes the value if there is one.
     pub fn try_take(&mut self) -> Option<T> {
-        if !self.slot.full.load(Ordering::Acquire) {
+        if self
+            .slot
+            .state
+            .compare_exchange(SLOT_FULL, SLOT_TAKING, Ordering::Acquire, Ordering::Relaxed)
+            .is_err()
+        {
             return None;
         }
-        // SAFETY: `full` is set (seen with Acquire, so the producer's write
-        // is visible) and the producer will not write again until we clear
-        // it; the value was initialised by `try_put`.
+        // SAFETY: we moved FULL→TAKING (Acquire: the producer's write is
+        // visible); the producer neither writes nor withdraws until we mark
+        // the slot empty; the value was initialised by `try_put`.
         let value = unsafe { (*self.slot.value.get()).assume_init() };
-        self.slot.full.store(false, Ordering::Release);
+        self.slot.state.store(SLOT_EMPTY, Ordering::Release);
         Some(value)
     }
 }

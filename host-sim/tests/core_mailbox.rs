@@ -48,6 +48,20 @@ fn slot_hands_one_value_at_a_time() {
 }
 
 #[test]
+fn slot_value_can_be_withdrawn_until_taken() {
+    let slot: Slot<u32> = Slot::new();
+    let (mut tx, mut rx) = slot.split().unwrap();
+    assert_eq!(tx.try_withdraw(), None, "nothing to withdraw");
+    tx.try_put(1).unwrap();
+    assert_eq!(tx.try_withdraw(), Some(1));
+    assert!(tx.is_empty());
+    assert_eq!(rx.try_take(), None, "a withdrawn value is never taken");
+    tx.try_put(2).unwrap();
+    assert_eq!(rx.try_take(), Some(2));
+    assert_eq!(tx.try_withdraw(), None, "a taken value cannot be withdrawn");
+}
+
+#[test]
 fn triple_buffer_gives_the_newest_value() {
     let tb = TripleBuffer::new(0u32);
     let (mut w, mut r) = tb.split().unwrap();
@@ -81,7 +95,11 @@ fn handoff_is_put_once_and_claimed_once() {
     assert!(h.claim().is_none(), "claimed only once");
 }
 
+/// Values pushed through each channel by the stress tests. A slot needs a
+/// round trip per value, so its tests yield while waiting (the machine may
+/// have fewer free cores than threads) and use a tenth of the count.
 const STRESS_ITERATIONS: u64 = 2_000_000;
+const SLOT_STRESS_ITERATIONS: u64 = STRESS_ITERATIONS / 10;
 
 #[test]
 fn slot_under_two_threads_loses_nothing_and_tears_nothing() {
@@ -89,27 +107,81 @@ fn slot_under_two_threads_loses_nothing_and_tears_nothing() {
     let (mut tx, mut rx) = slot.split().unwrap();
     let producer = thread::spawn(move || {
         let mut seq = 0;
-        while seq < STRESS_ITERATIONS {
+        while seq < SLOT_STRESS_ITERATIONS {
             if tx.try_put(Frame::new(seq)).is_ok() {
                 seq += 1;
             } else {
-                std::hint::spin_loop();
+                thread::yield_now();
             }
         }
     });
     let mut expected = 0;
-    while expected < STRESS_ITERATIONS {
+    while expected < SLOT_STRESS_ITERATIONS {
         match rx.try_take() {
             Some(f) => {
                 assert!(f.is_whole(), "torn value {f:?}");
                 assert_eq!(f.seq, expected, "values lost or reordered");
                 expected += 1;
             }
-            None => std::hint::spin_loop(),
+            None => thread::yield_now(),
         }
     }
     producer.join().unwrap();
     assert_eq!(rx.try_take(), None);
+}
+
+#[test]
+fn slot_with_withdrawals_under_two_threads_hands_each_value_to_exactly_one_side() {
+    // The producer withdraws every third value if it can; each value must end
+    // up either taken (whole, in order) or withdrawn, never both, never lost.
+    let slot: &'static Slot<Frame> = Box::leak(Box::new(Slot::new()));
+    let (mut tx, mut rx) = slot.split().unwrap();
+    let done: &'static AtomicBool = Box::leak(Box::new(AtomicBool::new(false)));
+    let producer = thread::spawn(move || {
+        let mut withdrawn = Vec::new();
+        let mut seq = 0;
+        while seq < SLOT_STRESS_ITERATIONS {
+            if tx.try_put(Frame::new(seq)).is_err() {
+                thread::yield_now();
+                continue;
+            }
+            if seq % 3 == 0 {
+                if let Some(f) = tx.try_withdraw() {
+                    assert!(f.is_whole() && f.seq == seq, "withdrew something else: {f:?}");
+                    withdrawn.push(seq);
+                }
+            }
+            seq += 1;
+        }
+        while !tx.is_empty() {
+            thread::yield_now();
+        }
+        done.store(true, Ordering::Release);
+        withdrawn
+    });
+    let mut taken = Vec::new();
+    loop {
+        let finished = done.load(Ordering::Acquire);
+        if let Some(f) = rx.try_take() {
+            assert!(f.is_whole(), "torn value {f:?}");
+            if let Some(&last) = taken.last() {
+                assert!(f.seq > last, "reordered: {} after {last}", f.seq);
+            }
+            taken.push(f.seq);
+        } else if finished {
+            break;
+        } else {
+            thread::yield_now();
+        }
+    }
+    let withdrawn = producer.join().unwrap();
+    assert_eq!(taken.len() + withdrawn.len(), SLOT_STRESS_ITERATIONS as usize, "values lost or duplicated");
+    let mut all: Vec<u64> = taken.iter().chain(withdrawn.iter()).copied().collect();
+    all.sort_unstable();
+    all.dedup();
+    assert_eq!(all.len(), SLOT_STRESS_ITERATIONS as usize, "a value both taken and withdrawn");
+    println!("slot with withdrawals: {} taken, {} withdrawn", taken.len(), withdrawn.len());
+    assert!(!withdrawn.is_empty() && taken.len() > withdrawn.len());
 }
 
 #[test]

@@ -5,9 +5,10 @@
 //!
 //! - **Requests** ([`Request`]) go in through a one-element slot. The
 //!   interrupt drains it at the start of its period, acts, and puts the
-//!   [`Reply`] in the reply slot in the same period. Each request carries a
-//!   sequence number that its reply echoes, so a reply that arrives after
-//!   the caller gave up is recognised and dropped.
+//!   [`Reply`] in the reply slot in the same period. A request the interrupt
+//!   has not taken when the caller gives up is withdrawn, so it never acts
+//!   late; each request carries a sequence number that its reply echoes, so
+//!   a reply that arrives after the caller gave up is recognised and dropped.
 //! - **Snapshots** ([`Snapshot`]: board status, calibration progress, the
 //!   drive's telemetry) come out through a triple buffer the interrupt
 //!   publishes into every [`SNAPSHOT_EVERY_PERIODS`] periods and right after
@@ -202,9 +203,11 @@ impl IsrLink {
 /// Why a request got no answer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
 pub enum LinkError {
-    /// The request slot was still full (the interrupt is not running).
+    /// The interrupt did not take the request in time (it is not running);
+    /// the request was withdrawn and will never act.
     NotTaken,
-    /// No reply within the deadline (the interrupt is not running).
+    /// The interrupt took the request but no reply came in time: the
+    /// request may have acted; its late reply is recognised and dropped.
     NoReply,
     /// The interrupt answered `Reply::Refused`: the request does not fit its
     /// present state (used by helpers that expect `Reply::Done`).
@@ -240,7 +243,14 @@ impl ThreadLink {
             match self.replies.try_take() {
                 Some(reply) if reply.seq == seq => return Ok(reply.body),
                 Some(_) => {}
-                None if expired() => return Err(LinkError::NoReply),
+                None if expired() => {
+                    // Take the request back if the interrupt has not started
+                    // on it: a command that timed out must not act later.
+                    return Err(match self.requests.try_withdraw() {
+                        Some(_) => LinkError::NotTaken,
+                        None => LinkError::NoReply,
+                    });
+                }
                 None => core::hint::spin_loop(),
             }
         }
