@@ -82,6 +82,9 @@ fn mailbox() {
     let s = opaque(addr_of!(SAMPLE));
     if let Some((mut tx, mut rx)) = SLOT.split() {
         sink(0, tx.try_put(s).is_ok() as u32 ^ tx.is_empty() as u32);
+        if opaque(addr_of!(SELECT)) == 7 {
+            sink(0, tx.try_withdraw().map_or(0, |v| v.encoder_count as u32));
+        }
         sink(1, rx.try_take().map_or(0, |v| v.encoder_count as u32));
     }
     if let Some((mut w, mut r)) = TRIPLE.split() {
