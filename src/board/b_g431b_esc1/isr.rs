@@ -96,8 +96,10 @@ impl IsrState {
     fn serve(&mut self, request: Request) -> Reply {
         match request {
             Request::BeginOffsetCalibration { samples } => {
-                // Only with the bridge off: the offsets are zero-current codes.
-                if pac::TIM1.bdtr().read().moe() {
+                // Only with the bridge off (the offsets are zero-current
+                // codes) and before the controller is installed (it would
+                // not be stepped while the interrupt sums).
+                if pac::TIM1.bdtr().read().moe() || self.link.controller().is_some() {
                     return Reply::Refused;
                 }
                 self.calibration = CalibrationSums { sum: [0; 3], count: 0, target: samples.max(1) };
