@@ -114,6 +114,15 @@ async fn main(_spawner: Spawner) {
     board::watchdog::start(WATCHDOG_TIMEOUT_MS);
     let mut dog = Watchdog::new();
 
+    // One poll for the interrupt's first snapshot (it publishes from its
+    // first period on): if none came, the interrupt is not running, nothing
+    // feeds the watchdog, and the reset that follows is the way out.
+    Timer::after(STARTUP_POLL).await;
+    dog.feed_if_isr_alive();
+    if board.snapshot().seq == 0 {
+        error!("the PWM interrupt is not running: bridge off; the watchdog will reset");
+        park(Some(dog)).await
+    }
     let pwm_timer_hz = board.pwm_timer_hz();
     let status = board.status();
     info!(
