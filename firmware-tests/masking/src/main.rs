@@ -19,6 +19,10 @@
 //! - priority 0 inside `cortex_m::interrupt::free` (PRIMASK, what
 //!   `critical-section-single-core` does): for contrast, ≈ the section.
 //!
+//! It also prices the interrupt's side of the lock-free link
+//! (`src/mailbox.rs`, included by path): checking for a request, taking one,
+//! publishing a snapshot-sized value (printed, not asserted).
+//!
 //! Run: `bash firmware-tests/masking/check.sh` (also scans the firmware image
 //! for every instruction that can mask the PWM interrupt). Exit code 0 only
 //! if the BASEPRI section delays priority 0 by nothing and holds priority 1.
@@ -32,6 +36,10 @@ mod masking;
 #[allow(dead_code)]
 #[path = "../../src/icount.rs"]
 mod icount;
+
+#[allow(dead_code)]
+#[path = "../../../src/mailbox.rs"]
+mod mailbox;
 
 use core::arch::asm;
 use core::panic::PanicInfo;
@@ -105,6 +113,48 @@ fn pend(irq: u16) -> u32 {
     t
 }
 
+/// A payload the size of the firmware's `Snapshot` (telemetry + board
+/// status, 160 bytes), to price the interrupt's side of the link.
+#[derive(Clone, Copy)]
+#[allow(dead_code)] // only ever copied: its size is the point
+struct Payload([u32; 40]);
+
+static REQUESTS: mailbox::Slot<[u32; 8]> = mailbox::Slot::new();
+static SNAPSHOTS: mailbox::TripleBuffer<Payload> = mailbox::TripleBuffer::new(Payload([0; 40]));
+
+#[inline(never)]
+fn take_request(rx: &mut mailbox::SlotReceiver<'_, [u32; 8]>) -> Option<[u32; 8]> {
+    rx.try_take()
+}
+
+#[inline(never)]
+fn publish(w: &mut mailbox::TripleWriter<'_, Payload>, p: Payload) {
+    w.publish(p)
+}
+
+/// What the interrupt pays per call for the lock-free link (instructions,
+/// call and return included): no request waiting (every period), one
+/// request waiting, one snapshot published (every 20 periods).
+fn link_costs(m: &Meter) -> (u32, u32, u32) {
+    let insns = |ticks: u32| m.insns(u64::from(ticks)) as u32;
+    let (Some((mut tx, mut rx)), Some((mut w, _r))) = (REQUESTS.split(), SNAPSHOTS.split()) else {
+        return (0, 0, 0);
+    };
+    let mut empty = 0;
+    let mut full = 0;
+    let mut snap = 0;
+    for round in 0..3u32 {
+        let (_, t) = m.measure(|| take_request(&mut rx));
+        empty = insns(t);
+        let _ = tx.try_put([round; 8]);
+        let (_, t) = m.measure(|| take_request(&mut rx));
+        full = insns(t);
+        let (_, t) = m.measure(|| publish(&mut w, Payload([round; 40])));
+        snap = insns(t);
+    }
+    (empty, full, snap)
+}
+
 /// Instructions from the pend to the handler's entry.
 fn delay(m: &Meter, pend_at: u32) -> f64 {
     let entry = ENTRY.load(Ordering::SeqCst);
@@ -165,6 +215,7 @@ fn main() -> ! {
     });
     let primask_pwm = delay(&m, t) - baseline;
 
+    let (empty, full, snap) = link_costs(&m);
     let section = f64::from(2 * SECTION_LOOPS + 1);
     hprintln!("priority bits implemented (IPR readback of 0xFF): {:#04x}", implemented);
     hprintln!("BASEPRI in a critical section: {:#04x}", masking::MASK_BASEPRI);
@@ -174,6 +225,12 @@ fn main() -> ! {
     hprintln!("priority 1 pended inside critical_section::with (BASEPRI): delayed {:.1} instructions (held to the end)", basepri_low);
     hprintln!("priority 0 pended inside interrupt::free (PRIMASK, for contrast): delayed {:.1} instructions", primask_pwm);
 
+    hprintln!(
+        "the interrupt's side of the link: no request {} instructions, a request taken {}, a 160-byte snapshot published {}",
+        empty,
+        full,
+        snap
+    );
     let ok = implemented & 0xF0 == 0xF0
         && basepri_pwm.abs() <= NONE_TOLERANCE_INSNS
         && basepri_low >= section - NONE_TOLERANCE_INSNS;
