@@ -12,9 +12,12 @@
 #    `cpsid`, `msr primask`/`faultmask` (mask everything, the PWM interrupt
 #    included) and `msr basepri_max` (with the value written, which must be
 #    0x10: levels 1..15, never level 0).
+# 3. Scanned: the call graph from the `ADC1_2` handler reaches no critical
+#    section and no defmt function.
 # Exit code 0 only if the measured delay at priority 0 is nil, priority 1 is
 # held, no PRIMASK/FAULTMASK write exists outside the panic handler (on its
-# way to HardFault) and every BASEPRI_MAX write is 0x10.
+# way to HardFault), every BASEPRI_MAX write is 0x10 and the interrupt
+# reaches neither a critical section nor the logger.
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 ROOT="$(cd "$HERE/../.." && pwd)"
@@ -53,6 +56,33 @@ ELF="$ROOT/target/thumbv7em-none-eabihf/release/cylinder-servo"
         printf "PRIMASK/FAULTMASK writes outside the panic handler: %d (in the panic handler, on its way to HardFault: %d)\n", global, panic_only
         printf "BASEPRI_MAX writes: %d, of which not 0x10: %d; BASEPRI restores: %d\n", raised, bad, restored
         exit (global > 0 || bad > 0) ? 1 : 0
+    }' || status=1
+
+echo ">>> 3. scanned: what the PWM interrupt can reach (call graph from ADC1_2)"
+# Direct calls and tail calls (bl/blx/b to another function's start) from
+# every function; everything reachable from the handler must stay clear of
+# critical sections and defmt (either would mean the interrupt waits on, or
+# masks for, thread mode's logger).
+# Mangled names (no -C): they hold no spaces or angle brackets.
+"$BIN/llvm-objdump" -d --no-show-raw-insn "$ELF" | awk '
+    /^[0-9a-f]+ <.*>:$/ { fn = $0; sub(/^[0-9a-f]+ </, "", fn); sub(/>:$/, "", fn); next }
+    $2 ~ /^(bl|blx|b|b\.w)$/ && match($0, /<[^<>+ ]+>/) {
+        t = substr($0, RSTART + 1, RLENGTH - 2)
+        if (t != fn) { edges[fn] = edges[fn] SUBSEP t }
+    }
+    END {
+        queue[1] = "ADC1_2"; seen["ADC1_2"] = 1; n = 1
+        for (i = 1; i <= n; i++) {
+            k = split(edges[queue[i]], next_fns, SUBSEP)
+            for (j = 1; j <= k; j++) {
+                t = next_fns[j]
+                if (t != "" && !(t in seen)) { seen[t] = 1; queue[++n] = t }
+            }
+        }
+        bad = 0
+        for (f in seen) if (f ~ /critical_section|defmt|SEGGER/) { bad++; print "  the interrupt can reach " f }
+        printf "functions reachable from ADC1_2: %d, of which critical-section or defmt: %d\n", n, bad
+        exit bad > 0 ? 1 : 0
     }' || status=1
 
 if ((status == 0)); then echo "masking: thread mode never masks the PWM interrupt"; else echo "masking: FAILED (see above)"; fi
