@@ -21,6 +21,7 @@ pub mod foc;
 pub mod io;
 pub mod lifecycle;
 pub mod load_estimate;
+pub mod mailbox;
 pub mod math;
 pub mod motion;
 pub mod observer;

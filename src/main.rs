@@ -1,23 +1,33 @@
 //! Firmware image: the servo drive on an STM32G4 board (B-G431B-ESC1).
 //!
 //! Two contexts:
-//! - the PWM interrupt (`board::active`, highest priority, 20 kHz) converts
-//!   the ADC/encoder sample and calls `Controller::step` — the whole control
-//!   law runs there;
-//! - this main task (embassy executor, thread mode, lowest priority) brings
-//!   the board up, calibrates the current offsets, installs the controller,
-//!   aligns and enables the drive, then logs telemetry, a heartbeat and
-//!   handles the button.
+//! - the PWM interrupt (`board::active`, priority 0, 20 kHz) converts the
+//!   ADC/encoder sample and calls `Controller::step` — the whole control law
+//!   runs there, on state the interrupt owns;
+//! - this main task (embassy executor, thread mode) brings the board up,
+//!   starts the watchdog, calibrates the current offsets, installs the
+//!   controller, and then only forwards commands (button, and the power-up
+//!   sequence if the user's configuration asks for it) and logs telemetry.
 //!
-//! See docs/firmware.md for pins, timing, flashing and reading the log.
+//! The two talk only through `board::link` (lock-free). Thread-mode critical
+//! sections (embassy, defmt-rtt) mask by priority and never the PWM
+//! interrupt (`masking`).
+//!
+//! Nothing moves at power-up: after any reset the drive waits for a command,
+//! unless [`START_LIFECYCLE_AT_POWER_UP`] says otherwise.
+//!
+//! See docs/firmware.md for pins, the power-up sequence, the brake, timing,
+//! flashing and reading the log.
 
 #![no_std]
 #![no_main]
 
 mod board;
+mod masking;
 
 use board::active as hw;
-use board::{with_controller, Calibration, ServoBoard, ISR_STATS};
+use board::link::{self, Reply, Request};
+use board::{Calibration, ServoBoard, ISR_STATS};
 use cortex_m_rt::{exception, ExceptionFrame};
 use defmt::{error, info, warn};
 use defmt_rtt as _;
@@ -27,77 +37,118 @@ use embassy_time::{Duration, Instant, Ticker, Timer};
 use panic_probe as _;
 use servo_core::{Command, Controller, Mode};
 
+/// THE user configuration that decides whether the drive moves by itself
+/// after power-up or any reset. `false` (default): it waits, bridge off,
+/// brake closed, for a command. `true`: the main task sends
+/// [`POWER_UP_SEQUENCE`] once the current offsets are known — only for a
+/// machine where moving unasked at every reset (watchdog reset included) is
+/// safe with whatever hangs on the rod. Nothing else in the image starts
+/// motion.
+const START_LIFECYCLE_AT_POWER_UP: bool = false;
+/// What "start" means when [`START_LIFECYCLE_AT_POWER_UP`] is set: commands
+/// sent in order, each retried until the drive accepts it (so each waits for
+/// the previous step to finish) or [`POWER_UP_STEP_TIMEOUT`] passes. The
+/// lifecycle in the core (calibrate → commutate → home) replaces this list
+/// at the merge.
+const POWER_UP_SEQUENCE: &[Command] = &[Command::Align, Command::Enable];
+/// Longest wait for one step of [`POWER_UP_SEQUENCE`] to be accepted.
+const POWER_UP_STEP_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
 /// of defmt (17 floats, mode, options, fault names as indices), so 50 Hz is
 /// ≈ 4.5 kB/s: well inside what an ST-LINK/V2-1 polls through probe-rs, and
-/// the 1 KiB RTT buffer still holds ≈ 0.2 s if the host stalls. Each frame
-/// also masks interrupts while defmt-rtt copies it (a few µs), which delays
-/// the PWM interrupt by that much: few, short frames keep that jitter rare.
-/// 50 Hz follows position moves (100 ms scale); it does not resolve the
-/// current or speed loops — use the host simulator for those.
+/// the 1 KiB RTT buffer still holds ≈ 0.2 s if the host stalls (beyond that,
+/// frames are dropped: defmt-rtt never blocks here). 50 Hz follows position
+/// moves (100 ms scale); it does not resolve the current or speed loops —
+/// use the host simulator for those.
 const TELEMETRY_HZ: u64 = 50;
 /// One heartbeat line every this many telemetry ticks (1 Hz).
 const HEARTBEAT_EVERY: u32 = TELEMETRY_HZ as u32;
-/// Independent watchdog timeout: five telemetry periods. The main task feeds
-/// it only while the current-loop ISR keeps running.
+/// Independent watchdog timeout: five telemetry periods. Started before the
+/// current offsets are measured, i.e. before the bridge can first be
+/// enabled; fed from thread mode only while the PWM interrupt advances.
 const WATCHDOG_TIMEOUT_MS: u32 = 100;
 /// Zero-current samples averaged per phase at start-up (≈ 0.1 s at 20 kHz).
 const OFFSET_CALIBRATION_SAMPLES: u32 = 2048;
-/// Find the electrical offset at start-up (incremental encoders lose it at
-/// every power-up). The rotor moves to a pole position.
-const ALIGN_AT_STARTUP: bool = true;
-/// Enable after alignment and hold the position found there.
-const ENABLE_AT_STARTUP: bool = true;
-/// Demo: after enabling, move back and forth between these two motor-side
-/// positions (metres, inside the stroke), dwelling this long at each.
-const DEMO_MOTION: Option<([f32; 2], Duration)> = None;
+/// Poll period while waiting at start-up (offsets, power-up steps): well
+/// inside the watchdog timeout.
+const STARTUP_POLL: Duration = Duration::from_millis(10);
 
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
+    // Priorities before `init` enables the time driver's interrupt: from the
+    // first instant, nothing but the PWM interrupt sits at priority 0.
+    hw::set_interrupt_priorities();
     let p = embassy_stm32::init(hw::clock_config());
     info!("cylinder-servo {} on {}", env!("CARGO_PKG_VERSION"), hw::NAME);
     let watchdog_reset = board::watchdog::take_reset_cause();
     if watchdog_reset {
-        error!("the last reset came from the independent watchdog");
+        error!("the last reset came from the independent watchdog: waiting for a command");
     }
 
-    // DWT cycle counter for the interrupt timing figures.
-    if let Some(mut cp) = cortex_m::Peripherals::take() {
-        cp.DCB.enable_trace();
-        cp.DWT.enable_cycle_counter();
-    } else {
-        warn!("core peripherals already taken: ISR cycle figures will read 0");
+    // DWT cycle counter: interrupt timing figures and the link's timeouts.
+    // `steal`, not `take`: `take` guards its flag with PRIMASK (cpsid), the
+    // only thing in the image that would mask the PWM interrupt.
+    // SAFETY: the only use of the core peripherals in the image; DCB/DWT
+    // are not touched anywhere else except reading CYCCNT.
+    let mut cp = unsafe { cortex_m::Peripherals::steal() };
+    cp.DCB.enable_trace();
+    cp.DWT.enable_cycle_counter();
+    if !hw::brake::boot_pin_ignored() {
+        warn!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode; set nSWBOOT0 = 0, nBOOT0 = 1");
     }
 
     let params = *board::VALID_PARAMS.get();
     let mut board = match board::bring_up(p) {
         Ok(b) => b,
         Err(e) => {
-            error!("board bring-up failed: {} (bridge off)", e);
-            park().await
+            error!("board bring-up failed: {} (bridge off, brake closed)", e);
+            park(None).await
         }
     };
+    if let Some(irq) = masking::unmasked_interrupt(pac::Interrupt::ADC1_2 as u16) {
+        error!("interrupt {=u16} sits at the PWM interrupt's priority: critical sections do not mask it", irq);
+    }
+
+    // The watchdog runs from here on, before anything can enable the bridge.
+    board::watchdog::start(WATCHDOG_TIMEOUT_MS);
+    let mut dog = Watchdog::new();
+
+    // One poll for the interrupt's first snapshot (it publishes from its
+    // first period on): if none came, the interrupt is not running, nothing
+    // feeds the watchdog, and the reset that follows is the way out.
+    Timer::after(STARTUP_POLL).await;
+    dog.feed_if_isr_alive();
+    if board.snapshot().seq == 0 {
+        error!("the PWM interrupt is not running: bridge off; the watchdog will reset");
+        park(Some(dog)).await
+    }
     let pwm_timer_hz = board.pwm_timer_hz();
+    let status = board.status();
     info!(
         "PWM {=f32} Hz centre-aligned, dead time {=u32} ns, HW overcurrent break: {}",
         params.rates.pwm_frequency_hz,
         hw::DEAD_TIME_NS,
-        board.status().hw_overcurrent_armed
+        status.hw_overcurrent_armed
     );
-    if !board.status().hw_overcurrent_armed && hw::HW_OVERCURRENT_BREAK {
+    if !status.hw_overcurrent_armed && hw::HW_OVERCURRENT_BREAK {
         error!("a comparator was high with the bridge off: hardware overcurrent break NOT armed");
     }
 
     // Current offsets with the bridge off.
-    board.begin_offset_calibration(OFFSET_CALIBRATION_SAMPLES);
+    if let Err(e) = board.begin_offset_calibration(OFFSET_CALIBRATION_SAMPLES) {
+        error!("the PWM interrupt did not take the calibration request: {} (bridge off)", e);
+        park(Some(dog)).await
+    }
     let offsets = loop {
-        Timer::after_millis(10).await;
+        Timer::after(STARTUP_POLL).await;
+        dog.feed_if_isr_alive();
         match board.offset_calibration() {
             Calibration::Pending => {}
             Calibration::Done { offset_codes } => break offset_codes,
             Calibration::Failed { offset_codes } => {
                 error!("current offsets implausible {} (codes): bridge stays off", offset_codes);
-                park().await
+                park(Some(dog)).await
             }
         }
     };
@@ -109,39 +160,33 @@ async fn main(_spawner: Spawner) {
         controller.report_watchdog_reset();
     }
     let faults = controller.faults();
-    board::install_controller(controller);
+    if link::install_controller(controller).is_err() {
+        error!("a controller was installed already");
+    }
     if !faults.is_empty() {
         error!("controller refuses to run: faults {}", faults);
     }
 
-    if ALIGN_AT_STARTUP && faults.is_empty() {
-        align().await;
-    }
-    if ENABLE_AT_STARTUP && faults.is_empty() {
-        send(Command::Enable);
+    if START_LIFECYCLE_AT_POWER_UP && faults.is_empty() {
+        warn!("START_LIFECYCLE_AT_POWER_UP: the drive starts by itself");
+        run_power_up_sequence(&mut board, &mut dog).await;
+    } else {
+        info!("ready: waiting for a command (bridge off, brake closed)");
     }
 
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
-    // Fed below only while the ISR keeps running: 5 telemetry ticks of slack.
-    board::watchdog::start(WATCHDOG_TIMEOUT_MS);
-    let mut isr_periods_at_feed = ISR_STATS.snapshot().periods;
     let mut tick: u32 = 0;
     let mut button_was = false;
-    let mut demo_leg = 0usize;
-    let mut demo_dwell_until = Instant::now();
     loop {
         ticker.next().await;
         tick = tick.wrapping_add(1);
-        let isr_periods = ISR_STATS.snapshot().periods;
-        if isr_periods != isr_periods_at_feed {
-            board::watchdog::feed();
-            isr_periods_at_feed = isr_periods;
-        }
+        dog.feed_if_isr_alive();
 
-        let snapshot = with_controller(|c| (c.telemetry(), c.mode(), c.move_in_progress()));
-        let Some((telemetry, mode, moving)) = snapshot else {
+        let snapshot = board.snapshot();
+        let Some((telemetry, _moving)) = snapshot.drive else {
             continue;
         };
+        let mode = telemetry.mode;
         info!("tlm {}", telemetry);
 
         // Button: acknowledge faults, else toggle the bridge.
@@ -151,28 +196,11 @@ async fn main(_spawner: Spawner) {
         }
         button_was = pressed;
 
-        if let Some((targets, dwell)) = DEMO_MOTION {
-            if mode == Mode::Running && !moving && Instant::now() >= demo_dwell_until {
-                let [a, b] = targets;
-                let target = if demo_leg.is_multiple_of(2) { a } else { b };
-                send(Command::MoveTo { position_m: target });
-                demo_leg = demo_leg.wrapping_add(1);
-                demo_dwell_until = Instant::now() + dwell;
-            }
-        }
-
-        // LED: on = running, 1 Hz blink = disabled, 5 Hz blink = fault or
-        // controlled stop (bridge on, holding).
-        let led = match mode {
-            Mode::Running | Mode::Aligning => true,
-            Mode::Disabled => (tick / (TELEMETRY_HZ as u32 / 2)).is_multiple_of(2),
-            Mode::Fault | Mode::Stopping | Mode::Braking => (tick / (TELEMETRY_HZ as u32 / 10)).is_multiple_of(2),
-        };
-        board.set_led(led);
+        board.set_led(led_pattern(mode, tick));
 
         if tick.is_multiple_of(HEARTBEAT_EVERY) {
             let isr = ISR_STATS.snapshot();
-            let status = board.status();
+            let status = snapshot.status;
             let ns_per_cycle = 1.0e9 / board.cpu_hz() as f32;
             info!(
                 "hb up={=u32}s mode={} faults={} bus={=f32}V temp={=f32}C hw_ocp_trip={=bool} isr: n={=u32} overruns={=u32} late={=u32} worst={=u32}cyc ({=f32}us) latency={=f32}us",
@@ -193,42 +221,89 @@ async fn main(_spawner: Spawner) {
     }
 }
 
-/// Sends a command and logs a refusal.
-fn send(cmd: Command) {
-    match with_controller(|c| c.command(cmd)) {
-        Some(Ok(outcome)) => info!("{} -> {}", cmd, outcome),
-        Some(Err(e)) => warn!("{} refused: {}", cmd, e),
-        None => warn!("{} dropped: no controller", cmd),
+/// LED: on = running, 1 Hz blink = disabled (waiting for a command), 5 Hz =
+/// fault, 2 Hz = any other mode (the drive is busy on its own: aligning,
+/// stopping, braking, or a lifecycle step added later).
+fn led_pattern(mode: Mode, tick: u32) -> bool {
+    let blink = |hz: u32| (tick / (TELEMETRY_HZ as u32 / (2 * hz)).max(1)).is_multiple_of(2);
+    match mode {
+        Mode::Running => true,
+        Mode::Disabled => blink(1),
+        Mode::Fault => blink(5),
+        _ => blink(2),
     }
 }
 
-/// Runs the alignment and waits for it to end (bounded).
-async fn align() {
-    send(Command::Align);
-    let deadline = Instant::now() + Duration::from_secs(5);
-    loop {
-        Timer::after_millis(20).await;
-        match with_controller(|c| c.mode()) {
-            Some(Mode::Aligning) if Instant::now() < deadline => {}
-            Some(Mode::Aligning) => {
-                warn!("alignment did not finish in 5 s; disabling");
-                send(Command::Disable);
+/// Feeds the watchdog only while the PWM interrupt keeps running: a hung
+/// interrupt, a dead ADC trigger or a hung executor all end in a reset, which
+/// comes back with the bridge off, the brake closed and the drive waiting.
+struct Watchdog {
+    isr_periods_at_feed: u32,
+}
+
+impl Watchdog {
+    fn new() -> Self {
+        Self { isr_periods_at_feed: ISR_STATS.snapshot().periods }
+    }
+
+    fn feed_if_isr_alive(&mut self) {
+        let periods = ISR_STATS.snapshot().periods;
+        if periods != self.isr_periods_at_feed {
+            board::watchdog::feed();
+            self.isr_periods_at_feed = periods;
+        }
+    }
+}
+
+/// Sends a command to the drive and logs the outcome. True if accepted.
+fn send(board: &mut hw::Board, cmd: Command) -> bool {
+    match board.call(Request::Drive(cmd)) {
+        Ok(Reply::Drive(Ok(outcome))) => {
+            info!("{} -> {}", cmd, outcome);
+            true
+        }
+        Ok(Reply::Drive(Err(e))) => {
+            warn!("{} refused: {}", cmd, e);
+            false
+        }
+        Ok(other) => {
+            warn!("{} not taken: {}", cmd, other);
+            false
+        }
+        Err(e) => {
+            error!("{} lost: {} (is the PWM interrupt running?)", cmd, e);
+            false
+        }
+    }
+}
+
+/// Only with [`START_LIFECYCLE_AT_POWER_UP`]: each step of
+/// [`POWER_UP_SEQUENCE`], retried until accepted (the previous one finished)
+/// or timed out (then the drive is disabled and waits for a command).
+async fn run_power_up_sequence(board: &mut hw::Board, dog: &mut Watchdog) {
+    for &cmd in POWER_UP_SEQUENCE {
+        let deadline = Instant::now() + POWER_UP_STEP_TIMEOUT;
+        loop {
+            if let Ok(Reply::Drive(Ok(outcome))) = board.call(Request::Drive(cmd)) {
+                info!("power-up: {} -> {}", cmd, outcome);
+                break;
+            }
+            if Instant::now() >= deadline {
+                warn!("power-up: {} not accepted within {=u64} ms; disabling", cmd, POWER_UP_STEP_TIMEOUT.as_millis());
+                send(board, Command::Disable);
                 return;
             }
-            Some(mode) => {
-                info!("alignment done, mode {}", mode);
-                return;
-            }
-            None => return,
+            Timer::after(STARTUP_POLL).await;
+            dog.feed_if_isr_alive();
         }
     }
 }
 
 /// Button: first acknowledges whatever is latched (board trip, controller
-/// faults); with nothing latched it toggles the bridge.
+/// faults); with nothing latched it toggles the bridge between Disabled and
+/// Running. In any other mode the drive is busy on its own: ignored.
 fn on_button(board: &mut hw::Board, mode: Mode) {
-    let board_tripped = board.status().hw_overcurrent_tripped;
-    if board_tripped {
+    if board.status().hw_overcurrent_tripped {
         if board.clear_latched_faults() {
             info!("hardware overcurrent trip cleared");
         } else {
@@ -236,29 +311,47 @@ fn on_button(board: &mut hw::Board, mode: Mode) {
         }
         return;
     }
-    if mode == Mode::Fault {
-        send(Command::ClearFaults);
-    } else if mode == Mode::Running {
-        send(Command::Disable);
-    } else {
-        send(Command::Enable);
+    match mode {
+        Mode::Fault => {
+            send(board, Command::ClearFaults);
+        }
+        Mode::Running => {
+            send(board, Command::Disable);
+        }
+        Mode::Disabled => {
+            send(board, Command::Enable);
+        }
+        _ => info!("button ignored in {}", mode),
     }
 }
 
-/// Stays here for ever, bridge off, still logging why.
-async fn park() -> ! {
+/// Stays here for ever, bridge off, brake closed, still logging why; keeps
+/// the watchdog fed (if it runs) while the PWM interrupt lives, so the log
+/// stays readable instead of a reset loop.
+async fn park(mut dog: Option<Watchdog>) -> ! {
+    let mut ticks: u32 = 0;
     loop {
-        Timer::after_secs(5).await;
-        error!("parked: see the first error above");
+        Timer::after(STARTUP_POLL).await;
+        if let Some(d) = dog.as_mut() {
+            d.feed_if_isr_alive();
+        }
+        ticks = ticks.wrapping_add(1);
+        if ticks.is_multiple_of(500) {
+            error!("parked: see the first error above");
+        }
     }
 }
 
-/// Any fault (including a panic: panic-probe ends in `udf`) first switches
-/// the bridge off, then stops. With a debugger attached, probe-rs halts on
-/// the fault and the DBGMCU freeze already disabled the TIM1 outputs.
+/// Any fault, a panic included (panic-probe ends in `udf`, which is a
+/// HardFault): switch the bridge off (MOE) and stop the brake's release
+/// signal (pin low), then stay here. Two register stores, no stack use
+/// beyond the frame: works with a corrupted stack pointer region too. With a
+/// debugger attached, probe-rs halts here; the DBGMCU freeze already
+/// disabled the TIM1 outputs, and the brake closed when the toggling stopped.
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+    hw::brake::force_closed();
     loop {
         cortex_m::asm::nop();
     }

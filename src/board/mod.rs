@@ -2,31 +2,32 @@
 //!
 //! The control core (`servo_core`) never sees a register. A board module owns
 //! the PWM timer, the ADC and the PWM-synchronous interrupt; that interrupt
-//! converts raw codes to a [`SensorSample`] in SI units, hands it to
-//! [`control_period`] (board-independent, here) and writes the returned
-//! [`PwmCommand`] to the timer.
+//! converts raw codes to a [`servo_core::SensorSample`] in SI units, steps the
+//! controller it owns and writes the returned [`servo_core::PwmCommand`] to
+//! the timer. Thread mode reaches the interrupt only through [`link`]:
+//! lock-free requests, replies and snapshots, never a critical section.
 //!
 //! # Porting to another STM32G4 board
 //!
-//! Add `src/board/<name>.rs` with the same public surface as
+//! Add `src/board/<name>/` with the same public surface as
 //! [`b_g431b_esc1`]:
 //!
-//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()` (a `const fn`);
+//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()` (a `const fn`),
+//!   `BRAKE` (the brake pin) and `brake::force_closed()`;
 //! - `Board::new(peripherals, pwm_frequency_hz) -> Result<Board, BoardError>`;
 //! - an implementation of [`ServoBoard`] for `Board`;
-//! - the ADC end-of-injected-sequence interrupt handler that calls
-//!   [`control_period`], [`report_overrun`] and updates [`ISR_STATS`];
+//! - the ADC end-of-injected-sequence interrupt handler that serves
+//!   [`link::IsrLink`] (requests at the start of the period, snapshots),
+//!   steps the controller and updates [`ISR_STATS`], and never calls into
+//!   `critical_section` or `defmt`;
 //!
 //! then point `active` below at it. `main.rs` only uses `active::…` and the
-//! items of this file, so nothing else changes.
+//! items of this module, so nothing else changes.
 
-use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use critical_section::{CriticalSection, Mutex};
-use servo_core::{Controller, PwmCommand, SensorSample};
-
 pub mod b_g431b_esc1;
+pub mod link;
 pub mod watchdog;
 
 /// The board this image is built for.
@@ -58,80 +59,23 @@ pub fn bring_up(p: embassy_stm32::Peripherals) -> Result<active::Board, active::
     active::Board::new(p, VALID_PARAMS.get().rates.pwm_frequency_hz)
 }
 
-/// The drive. The PWM interrupt steps it every period; the main task sends
-/// commands and reads telemetry between periods, each time inside a short
-/// critical section. `None` until the main task installs it (after the
-/// current-offset calibration), during which the interrupt keeps the bridge off.
-pub static CONTROLLER: Mutex<RefCell<Option<Controller>>> = Mutex::new(RefCell::new(None));
-
-/// Puts the controller in place. Takes effect at the next PWM period.
-pub fn install_controller(controller: Controller) {
-    critical_section::with(|cs| {
-        if let Ok(mut slot) = CONTROLLER.borrow(cs).try_borrow_mut() {
-            *slot = Some(controller);
-        }
-    });
-}
-
-/// Runs `f` on the controller from thread mode. Interrupts are masked while
-/// `f` runs, so keep it short (a command, a telemetry copy). `None` if no
-/// controller is installed.
-pub fn with_controller<R>(f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
-    critical_section::with(|cs| {
-        let mut slot = CONTROLLER.borrow(cs).try_borrow_mut().ok()?;
-        slot.as_mut().map(f)
-    })
-}
-
-/// One control period, called by the board's PWM interrupt with a converted
-/// sample. Never blocks, never panics; with no controller installed (or the
-/// slot unexpectedly borrowed) the answer is [`PwmCommand::OFF`].
-#[inline(always)]
-pub fn control_period(cs: CriticalSection<'_>, sample: &SensorSample) -> PwmCommand {
-    match CONTROLLER.borrow(cs).try_borrow_mut() {
-        Ok(mut slot) => match slot.as_mut() {
-            Some(c) => c.step(sample),
-            None => PwmCommand::OFF,
-        },
-        Err(_) => {
-            ISR_STATS.busy.fetch_add(1, Ordering::Relaxed);
-            PwmCommand::OFF
-        }
-    }
-}
-
-/// Tells the controller that a PWM period was missed (it latches
-/// `ISR_OVERRUN` and switches the bridge off).
-#[inline(always)]
-pub fn report_overrun(cs: CriticalSection<'_>) {
-    if let Ok(mut slot) = CONTROLLER.borrow(cs).try_borrow_mut() {
-        if let Some(c) = slot.as_mut() {
-            c.report_isr_overrun();
-        }
-    }
-}
-
-/// Latches `BRIDGE_BREAK` from the PWM interrupt after the hardware
-/// overcurrent break fired (the board latches its own flag too; the operator
-/// clears both, see `main`).
-#[inline(always)]
-pub fn report_bridge_break(cs: CriticalSection<'_>) {
-    if let Ok(mut slot) = CONTROLLER.borrow(cs).try_borrow_mut() {
-        if let Some(c) = slot.as_mut() {
-            c.report_bridge_break();
-        }
-    }
-}
-
-/// What a board does for the main task, besides running its interrupt.
+/// What a board does for thread mode, besides running its interrupt. Every
+/// method returns at once or after at most a few PWM periods; none masks
+/// an interrupt.
 pub trait ServoBoard {
+    /// Sends a request to the interrupt and waits (spinning, ≤ a few PWM
+    /// periods) for its reply.
+    fn call(&mut self, request: link::Request) -> Result<link::Reply, link::LinkError>;
+    /// The newest snapshot the interrupt published.
+    fn snapshot(&mut self) -> link::Snapshot;
     /// Starts averaging `samples` phase-current readings with the bridge off
     /// (the PWM interrupt does the summing).
-    fn begin_offset_calibration(&mut self, samples: u32);
-    /// Where the offset calibration stands.
+    fn begin_offset_calibration(&mut self, samples: u32) -> Result<(), link::LinkError>;
+    /// Where the offset calibration stands. When the sums are complete and
+    /// plausible, tells the interrupt to convert with them and returns `Done`.
     fn offset_calibration(&mut self) -> Calibration;
     /// Latest bus voltage, temperature and hardware protection state.
-    fn status(&self) -> BoardStatus;
+    fn status(&mut self) -> BoardStatus;
     /// Clears a latched hardware trip (e.g. the overcurrent break) if its
     /// cause is gone. Returns whether the board is clear now.
     fn clear_latched_faults(&mut self) -> bool;
@@ -179,8 +123,8 @@ pub struct IsrStats {
     /// The interrupt started after the PWM peak: far too late, or the ADC
     /// trigger is on the wrong counter turn-around.
     pub late: AtomicU32,
-    /// Controller slot found borrowed (cannot happen on one core; counted,
-    /// bridge off for that period).
+    /// The interrupt found its own state missing (cannot happen once
+    /// `Board::new` returned; counted, bridge off for that period).
     pub busy: AtomicU32,
     /// The core asked for a non-finite duty; that period ran with the bridge off.
     pub bad_duty: AtomicU32,

@@ -1,11 +1,14 @@
 //! The independent watchdog (IWDG, clocked by the 32 kHz LSI, which no
 //! software fault can stop). Common to the STM32G4 family.
 //!
-//! The main task feeds it only when the current-loop interrupt has run since
-//! the last feed, so a hung ISR, a hung executor or a dead ADC trigger all end
-//! in a reset with the bridge off (TIM1 outputs reset to disabled). After such
-//! a reset the controller latches `WATCHDOG_RESET` and waits for an explicit
-//! clear.
+//! `main` starts it right after bring-up, before the current offsets are
+//! measured and so before the bridge can first be enabled, and feeds it only
+//! when the current-loop interrupt has run since the last feed. A hung ISR, a
+//! hung executor or a dead ADC trigger all end in a reset: TIM1's outputs
+//! reset to disabled (bridge off), the brake pin stops toggling (brake
+//! closed), and after it the controller latches `WATCHDOG_RESET`, nothing is
+//! started (`START_LIFECYCLE_AT_POWER_UP` aside) and the drive waits for a
+//! command and an explicit clear.
 
 use embassy_stm32::pac;
 use embassy_stm32::pac::iwdg::vals::{Key, Pr};

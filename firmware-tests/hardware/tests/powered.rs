@@ -22,24 +22,32 @@ use panic_probe as _;
 #[path = "../../../src/board/mod.rs"]
 mod board;
 
+use board::link::{Reply, Request};
+use board::ServoBoard;
 use defmt::{assert, info};
-use servo_core::{Command, Mode};
+use servo_core::{Command, Mode, Telemetry};
 
-fn send(cmd: Command) {
-    let r = board::with_controller(|c| c.command(cmd));
+/// A command through the board's lock-free link, as `main` sends it.
+fn send(b: &mut board::active::Board, cmd: Command) {
+    let r = b.call(Request::Drive(cmd));
     info!("{} -> {}", cmd, r);
-    assert!(matches!(r, Some(Ok(_))), "command refused");
+    assert!(matches!(r, Ok(Reply::Drive(Ok(_)))), "command refused");
 }
 
-fn mode() -> Mode {
-    board::with_controller(|c| c.mode()).unwrap_or(Mode::Fault)
+/// The drive's newest telemetry (published by the interrupt every 1 ms).
+fn telemetry(b: &mut board::active::Board) -> Option<Telemetry> {
+    b.snapshot().drive.map(|(t, _)| t)
+}
+
+fn mode(b: &mut board::active::Board) -> Mode {
+    telemetry(b).map_or(Mode::Fault, |t| t.mode)
 }
 
 
 #[defmt_test::tests]
 mod tests {
     use super::board::{self, active as hw, Calibration, ServoBoard, ISR_STATS};
-    use super::{mode, send};
+    use super::{mode, send, telemetry};
     use core::sync::atomic::Ordering;
     use defmt::{assert, info};
     use embassy_stm32::pac;
@@ -47,7 +55,7 @@ mod tests {
     use servo_core::{Command, Controller, Mode};
 
     pub struct State {
-        _board: hw::Board,
+        board: hw::Board,
         params: servo_core::ControlParams,
         pwm_hz: f32,
         cpu_hz: u32,
@@ -71,7 +79,7 @@ mod tests {
             "bus {=f32} V outside the parameter set's window: these tests need the power stage supplied",
             bus
         );
-        b.begin_offset_calibration(2048);
+        assert!(b.begin_offset_calibration(2048).is_ok(), "the PWM interrupt did not take the calibration request");
         let t0 = hardware_tests::cycles();
         loop {
             match b.offset_calibration() {
@@ -84,28 +92,28 @@ mod tests {
             }
             assert!(hardware_tests::cycles().wrapping_sub(t0) < cpu_hz, "offset calibration did not finish");
         }
-        board::install_controller(Controller::new(params));
+        assert!(board::link::install_controller(Controller::new(params)).is_ok(), "controller installed twice");
         wait_cycles(cpu_hz / 100);
-        send(Command::Align);
+        send(&mut b, Command::Align);
         let t0 = hardware_tests::cycles();
-        while mode() == Mode::Aligning {
+        while mode(&mut b) == Mode::Aligning {
             assert!(hardware_tests::cycles().wrapping_sub(t0) < 2 * cpu_hz, "alignment did not finish");
         }
-        assert!(mode() == Mode::Disabled, "alignment ended in {}", mode());
-        send(Command::Enable);
+        assert!(mode(&mut b) == Mode::Disabled, "alignment ended in {}", mode(&mut b));
+        send(&mut b, Command::Enable);
         wait_cycles(cpu_hz / 5);
         let pwm_hz = params.rates.pwm_frequency_hz;
-        State { _board: b, params, pwm_hz, cpu_hz }
+        State { board: b, params, pwm_hz, cpu_hz }
     }
 
     /// A +1 mm move turns the counter by +0.2 rev × direction.
     #[test]
     fn encoder_count_direction(s: &mut State) {
         let start_raw = pac::TIM4.cnt().read().cnt();
-        let start_m = board::with_controller(|c| c.motor_position_m()).unwrap_or(0.0);
-        send(Command::MoveTo { position_m: start_m + 0.001 });
+        let start_m = telemetry(&mut s.board).map_or(0.0, |t| t.motor_position_m);
+        send(&mut s.board, Command::MoveTo { position_m: start_m + 0.001 });
         wait_cycles(s.cpu_hz); // 1 s: the move takes ~0.1 s
-        let faults = board::with_controller(|c| c.faults()).unwrap_or(servo_core::FaultSet::INVALID_PARAMS);
+        let faults = telemetry(&mut s.board).map_or(servo_core::FaultSet::INVALID_PARAMS, |t| t.faults);
         assert!(faults.is_empty(), "fault during the move (a reversed encoder trips the following error): {}", faults);
         let counts = pac::TIM4.cnt().read().cnt().wrapping_sub(start_raw) as i16 as i32;
         let expected = s.params.encoder.counts_per_rev as i32 / 5 * s.params.encoder.direction;
@@ -133,8 +141,8 @@ mod tests {
     }
 
     #[teardown]
-    fn teardown(_s: &mut State) {
-        let _ = board::with_controller(|c| c.command(Command::Disable));
+    fn teardown(s: &mut State) {
+        let _ = s.board.call(board::link::Request::Drive(Command::Disable));
         info!("bridge off");
     }
 }

@@ -72,6 +72,32 @@ fn command(c: &mut Controller) {
     sink(4, c.command(cmd).is_ok() as u32);
 }
 
+/// The lock-free hand-over the firmware's interrupt and main task use
+/// (`servo_core::mailbox`): every operation, on opaque payloads.
+fn mailbox() {
+    use servo_core::mailbox::{Handoff, Slot, TripleBuffer};
+    static SLOT: Slot<SensorSample> = Slot::new();
+    static TRIPLE: TripleBuffer<SensorSample> = TripleBuffer::new(SensorSample::idle(0.0));
+    static HANDOFF: Handoff<SensorSample> = Handoff::new();
+    let s = opaque(addr_of!(SAMPLE));
+    if let Some((mut tx, mut rx)) = SLOT.split() {
+        sink(0, tx.try_put(s).is_ok() as u32 ^ tx.is_empty() as u32);
+        if opaque(addr_of!(SELECT)) == 7 {
+            sink(0, tx.try_withdraw().map_or(0, |v| v.encoder_count as u32));
+        }
+        sink(1, rx.try_take().map_or(0, |v| v.encoder_count as u32));
+    }
+    if let Some((mut w, mut r)) = TRIPLE.split() {
+        w.publish(s);
+        sink(2, r.has_fresh() as u32 ^ r.read().bus_voltage_v.to_bits());
+    }
+    sink(3, HANDOFF.put(s).is_ok() as u32 ^ HANDOFF.is_filled() as u32);
+    if let Some(v) = HANDOFF.claim() {
+        v.encoder_count = v.encoder_count.wrapping_add(1);
+        sink(4, v.encoder_count as u32);
+    }
+}
+
 #[entry]
 fn main() -> ! {
     let params = opaque(addr_of!(PARAMS));
@@ -94,6 +120,7 @@ fn main() -> ! {
         }
         // The main task's calls.
         command(&mut c);
+        mailbox();
         let t = c.telemetry();
         sink(
             5,

@@ -1,0 +1,263 @@
+//! How thread mode and the PWM interrupt talk: requests in, replies and
+//! snapshots out, all through the lock-free mailbox of the control core
+//! (`servo_core::mailbox`). Nothing here masks an interrupt, so thread mode
+//! (the main task, the logger, embassy) can never delay the current loop.
+//!
+//! - **Requests** ([`Request`]) go in through a one-element slot. The
+//!   interrupt drains it at the start of its period, acts, and puts the
+//!   [`Reply`] in the reply slot in the same period. A request the interrupt
+//!   has not taken when the caller gives up is withdrawn, so it never acts
+//!   late; each request carries a sequence number that its reply echoes, so
+//!   a reply that arrives after the caller gave up is recognised and dropped.
+//! - **Snapshots** ([`Snapshot`]: board status, calibration progress, the
+//!   drive's telemetry) come out through a triple buffer the interrupt
+//!   publishes into every [`SNAPSHOT_EVERY_PERIODS`] periods and right after
+//!   each request; thread mode reads the newest whole one whenever it likes.
+//! - **The controller** is moved into the interrupt once, through a
+//!   [`Handoff`]; from then on only the interrupt touches it.
+//!
+//! Board-independent: a board module's interrupt uses [`IsrLink`], `main`
+//! and the on-board tests use [`ThreadLink`] (through the board's `Board`).
+
+use cortex_m::peripheral::DWT;
+use servo_core::mailbox::{Handoff, Slot, SlotReceiver, SlotSender, TripleBuffer, TripleReader, TripleWriter};
+use servo_core::{Command, CommandError, CommandOutcome, Controller, Telemetry};
+
+use super::BoardStatus;
+
+/// The interrupt publishes a snapshot every this many PWM periods (1 kHz at
+/// 20 kHz): 20× the 50 Hz telemetry rate, so thread mode never reads one
+/// older than 1 ms, while the copy (≈ 130 bytes) costs the interrupt only a
+/// twentieth of its price per period.
+pub const SNAPSHOT_EVERY_PERIODS: u32 = 20;
+
+/// What thread mode asks of the interrupt.
+#[derive(Clone, Copy, Debug, PartialEq, defmt::Format)]
+pub enum Request {
+    /// Start summing `samples` raw phase-current codes with the bridge off.
+    BeginOffsetCalibration { samples: u32 },
+    /// Convert with these zero-current codes from now on and run the drive
+    /// (the controller, once installed, is stepped from the next period).
+    UseOffsets { offset_codes: [f32; 3] },
+    /// Clear the board's latched hardware overcurrent trip if no comparator
+    /// is high any more.
+    ClearHardwareTrip,
+    /// A command for the drive (`Controller::command`).
+    Drive(Command),
+}
+
+/// The interrupt's answer to one [`Request`].
+#[derive(Clone, Copy, Debug, PartialEq, defmt::Format)]
+pub enum Reply {
+    /// Board request done.
+    Done,
+    /// The request does not fit the interrupt's present state (e.g. offsets
+    /// before a calibration finished): nothing changed.
+    Refused,
+    /// Whether the hardware trip is clear now.
+    HardwareTrip { cleared: bool },
+    /// The drive's answer.
+    Drive(Result<CommandOutcome, CommandError>),
+    /// No controller is installed yet: the command went nowhere.
+    NoDrive,
+}
+
+/// A request or reply with the caller's sequence number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Envelope<T> {
+    pub seq: u32,
+    pub body: T,
+}
+
+/// What the interrupt is doing with the samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, defmt::Format)]
+pub enum IsrPhase {
+    /// Bridge off, nothing converted (before the offset calibration, or
+    /// after it failed).
+    #[default]
+    Idle,
+    /// Bridge off, summing raw current codes.
+    Calibrating,
+    /// Converting and stepping the controller (bridge off until one is
+    /// installed and asks for it).
+    Running,
+}
+
+/// Progress of the current-offset calibration, as raw sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, defmt::Format)]
+pub struct CalibrationSums {
+    pub sum: [u32; 3],
+    pub count: u32,
+    pub target: u32,
+}
+
+/// What thread mode sees of the interrupt's side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snapshot {
+    /// Publications so far (wraps).
+    pub seq: u32,
+    pub phase: IsrPhase,
+    pub calibration: CalibrationSums,
+    pub offset_codes: [f32; 3],
+    pub status: BoardStatus,
+    /// The drive's telemetry and whether a move is in progress; `None` until
+    /// the controller is installed.
+    pub drive: Option<(Telemetry, bool)>,
+}
+
+impl Snapshot {
+    pub const INITIAL: Self = Self {
+        seq: 0,
+        phase: IsrPhase::Idle,
+        calibration: CalibrationSums { sum: [0; 3], count: 0, target: 0 },
+        offset_codes: [0.0; 3],
+        status: BoardStatus {
+            bus_voltage_v: 0.0,
+            temperature_c: 0.0,
+            hw_overcurrent_armed: false,
+            hw_overcurrent_tripped: false,
+        },
+        drive: None,
+    };
+}
+
+static REQUESTS: Slot<Envelope<Request>> = Slot::new();
+static REPLIES: Slot<Envelope<Reply>> = Slot::new();
+static SNAPSHOTS: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::INITIAL);
+/// The controller, moved into the interrupt once.
+static CONTROLLER: Handoff<Controller> = Handoff::new();
+
+/// The interrupt's ends of the link.
+pub struct IsrLink {
+    requests: SlotReceiver<'static, Envelope<Request>>,
+    replies: SlotSender<'static, Envelope<Reply>>,
+    snapshots: TripleWriter<'static, Snapshot>,
+    controller: Option<&'static mut Controller>,
+    published_seq: u32,
+}
+
+/// Thread mode's ends of the link.
+pub struct ThreadLink {
+    requests: SlotSender<'static, Envelope<Request>>,
+    replies: SlotReceiver<'static, Envelope<Reply>>,
+    snapshots: TripleReader<'static, Snapshot>,
+    next_seq: u32,
+}
+
+/// Both ends, created once (`None` on a second call: the board is brought
+/// up once per reset).
+pub fn split() -> Option<(ThreadLink, IsrLink)> {
+    let (req_tx, req_rx) = REQUESTS.split()?;
+    let (rep_tx, rep_rx) = REPLIES.split()?;
+    let (snap_w, snap_r) = SNAPSHOTS.split()?;
+    Some((
+        ThreadLink { requests: req_tx, replies: rep_rx, snapshots: snap_r, next_seq: 0 },
+        IsrLink { requests: req_rx, replies: rep_tx, snapshots: snap_w, controller: None, published_seq: 0 },
+    ))
+}
+
+/// Moves the controller into the interrupt; it is stepped from the first
+/// period after the interrupt picks it up. Gives it back if one was
+/// installed already.
+// Giving the controller back on refusal is the point (no allocator to box it).
+#[allow(clippy::result_large_err)]
+pub fn install_controller(controller: Controller) -> Result<(), Controller> {
+    CONTROLLER.put(controller)
+}
+
+impl IsrLink {
+    /// The next request, if thread mode posted one.
+    #[inline(always)]
+    pub fn take_request(&mut self) -> Option<Envelope<Request>> {
+        self.requests.try_take()
+    }
+
+    /// Answers a request. Thread mode waits for at most one reply at a time,
+    /// so the slot is free; if it is not (a stale reply nobody collected), the
+    /// new one is dropped and the caller times out.
+    #[inline(always)]
+    pub fn reply(&mut self, seq: u32, body: Reply) {
+        let _ = self.replies.try_put(Envelope { seq, body });
+    }
+
+    /// The controller, once installed (an atomic load per period until then).
+    #[inline(always)]
+    pub fn controller(&mut self) -> Option<&mut Controller> {
+        if self.controller.is_none() {
+            self.controller = CONTROLLER.claim();
+        }
+        self.controller.as_deref_mut()
+    }
+
+    /// Publishes a snapshot of the board's side; the drive's part (telemetry,
+    /// move in progress) and the sequence number are added here.
+    #[inline(always)]
+    pub fn publish(&mut self, mut snapshot: Snapshot) {
+        self.published_seq = self.published_seq.wrapping_add(1);
+        snapshot.seq = self.published_seq;
+        snapshot.drive = self.controller.as_deref().map(|c| (c.telemetry(), c.move_in_progress()));
+        self.snapshots.publish(snapshot);
+    }
+}
+
+/// Why a request got no answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum LinkError {
+    /// The interrupt did not take the request in time (it is not running);
+    /// the request was withdrawn and will never act.
+    NotTaken,
+    /// The interrupt took the request but no reply came in time: the
+    /// request may have acted; its late reply is recognised and dropped.
+    NoReply,
+    /// The interrupt answered `Reply::Refused`: the request does not fit its
+    /// present state (used by helpers that expect `Reply::Done`).
+    Refused,
+}
+
+impl ThreadLink {
+    /// Posts `request` and waits for its reply, at most `timeout_cycles` CPU
+    /// cycles (DWT). The wait spins in thread mode with nothing masked: the
+    /// interrupt answers within one PWM period, so this is ≈ 50 µs at most.
+    pub fn call(&mut self, request: Request, timeout_cycles: u32) -> Result<Reply, LinkError> {
+        let t0 = DWT::cycle_count();
+        // Each spin takes more than one cycle, so counting spins bounds the
+        // wait even if the DWT counter was never started.
+        let mut spins: u32 = 0;
+        let mut expired = || {
+            spins = spins.saturating_add(1);
+            spins > timeout_cycles || DWT::cycle_count().wrapping_sub(t0) > timeout_cycles
+        };
+        // Drop a stale reply left by an earlier call that timed out.
+        let _ = self.replies.try_take();
+        self.next_seq = self.next_seq.wrapping_add(1);
+        let seq = self.next_seq;
+        let mut envelope = Envelope { seq, body: request };
+        loop {
+            match self.requests.try_put(envelope) {
+                Ok(()) => break,
+                Err(back) if !expired() => envelope = back,
+                Err(_) => return Err(LinkError::NotTaken),
+            }
+        }
+        loop {
+            match self.replies.try_take() {
+                Some(reply) if reply.seq == seq => return Ok(reply.body),
+                Some(_) => {}
+                None if expired() => {
+                    // Take the request back if the interrupt has not started
+                    // on it: a command that timed out must not act later.
+                    return Err(match self.requests.try_withdraw() {
+                        Some(_) => LinkError::NotTaken,
+                        None => LinkError::NoReply,
+                    });
+                }
+                None => core::hint::spin_loop(),
+            }
+        }
+    }
+
+    /// The newest snapshot the interrupt published.
+    pub fn snapshot(&mut self) -> Snapshot {
+        self.snapshots.read()
+    }
+}
