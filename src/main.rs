@@ -47,10 +47,10 @@ use servo_core::{Command, Controller, Mode};
 const START_LIFECYCLE_AT_POWER_UP: bool = false;
 /// What "start" means when [`START_LIFECYCLE_AT_POWER_UP`] is set: commands
 /// sent in order, each retried until the drive accepts it (so each waits for
-/// the previous step to finish) or [`POWER_UP_STEP_TIMEOUT`] passes. The
-/// lifecycle in the core (calibrate → commutate → home) replaces this list
-/// at the merge.
-const POWER_UP_SEQUENCE: &[Command] = &[Command::Align, Command::Enable];
+/// the previous step to finish) or [`POWER_UP_STEP_TIMEOUT`] passes.
+/// `StartUp` runs the core's lifecycle: calibrate → commutate (brake closed,
+/// load on) → home → ready, holding.
+const POWER_UP_SEQUENCE: &[Command] = &[Command::StartUp];
 /// Longest wait for one step of [`POWER_UP_SEQUENCE`] to be accepted.
 const POWER_UP_STEP_TIMEOUT: Duration = Duration::from_secs(5);
 

@@ -54,6 +54,7 @@ impl Controller {
         }
         let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
         let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
+        self.q_current_limit_a = iq_max;
         let (mut lo, mut hi) = (-iq_max, iq_max);
         if self.limits.contains(LimitFlags::VOLTAGE) {
             let reachable = self.current_dq.q.abs() + VOLTAGE_LIMITED_Q_MARGIN_A;
@@ -67,8 +68,6 @@ impl Controller {
             lo = crate::math::max(lo, self.hold_current_q_a - push);
             hi = crate::math::min(hi, self.hold_current_q_a + push);
         }
-        self.q_current_min_a = lo;
-        self.q_current_max_a = hi;
         let out = self.speed_loop.step(
             &self.params,
             self.speed_reference_rad_s,
@@ -223,7 +222,9 @@ impl Controller {
             position_command_m: self.position_command_m,
             position_shift_m: self.applied_shift_m,
             motor_position_m: self.motor_position_m(),
-            motor_angle_rad: self.encoder.position_counts() * self.derived.rad_per_count,
+            // In the user's frame, like the position: the angle the rod's
+            // position corresponds to (per-revolution effects are phased by it).
+            motor_angle_rad: self.motor_position_m() * self.derived.rad_per_metre,
             speed_reference_rad_s: self.speed_reference_rad_s,
             speed_rad_s: self.speed_rad_s(),
             current_d_a: self.current_dq.d,

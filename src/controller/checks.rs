@@ -282,7 +282,7 @@ impl Controller {
             present.insert(FaultSet::POSITION_FOLLOWING);
         }
         let brake_stronger = self.params.brake.fitted
-            && self.params.torque_constant_n_m_a() * self.q_current_max_a < self.params.brake.holding_torque_n_m;
+            && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m;
         let stop_failed =
             matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
         if self.mode == Mode::Running && homed {

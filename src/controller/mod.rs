@@ -38,6 +38,8 @@ struct Derived {
     current_limit_a: f32,
     metres_per_count: f32,
     rad_per_count: f32,
+    /// `2π / lead`: user position to motor angle.
+    rad_per_metre: f32,
     /// `pole_pairs · 2π / counts_per_rev`: counts straight to electrical
     /// radians, one multiply per period.
     electrical_rad_per_count: f32,
@@ -64,6 +66,7 @@ impl Derived {
             current_limit_a: p.current_limit_a(),
             metres_per_count: p.drive_train.screw_lead_m / cpr,
             rad_per_count: 2.0 * PI / cpr,
+            rad_per_metre: 2.0 * PI / p.drive_train.screw_lead_m,
             electrical_rad_per_count: p.motor.pole_pairs as f32 * (2.0 * PI / cpr),
             open_phase_window_ticks: periods(p.faults.open_phase_window_s, p.speed_period_s()),
             brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
@@ -154,10 +157,10 @@ pub struct Controller {
     /// How long the back-EMF has shown more speed than the encoder.
     emf_mismatch_s: f32,
     count_at_last_speed_tick: i32,
-    /// The q-current bounds the speed loop had last (thermal foldback,
-    /// the d-current taken off the current circle, regeneration, homing).
-    q_current_min_a: f32,
-    q_current_max_a: f32,
+    /// The q-current bound the speed loop had last (thermal and power-stage
+    /// foldback, the d-current taken off the current circle), before the
+    /// anti-windup and homing narrow it: what the motor could give.
+    q_current_limit_a: f32,
     open_phase: OpenPhaseMonitor,
     /// The open-phase check's last verdict (it keeps it through windows
     /// that cannot judge).
@@ -266,8 +269,7 @@ impl Controller {
             no_count_s: 0.0,
             emf_mismatch_s: 0.0,
             count_at_last_speed_tick: 0,
-            q_current_min_a: 0.0,
-            q_current_max_a: 0.0,
+            q_current_limit_a: 0.0,
             open_phase: OpenPhaseMonitor::new(),
             open_phase_present: false,
             brake_periods: 0,

@@ -149,16 +149,16 @@ impl IsrState {
         } else if d2 > RECONSTRUCT_ABOVE_DUTY {
             i = [a, b, -(a + b)];
         }
-        // TODO(issue 10, merge with the core's lifecycle): fill the two fields
-        // the core is adding to `SensorSample`:
-        //   power_stage_temperature_c: self.temperature_c,
-        //   home_switch: None, // the ESC1 has no home-switch input wired yet
         SensorSample {
             phase_current_a: i,
             encoder_count,
             bus_voltage_v: self.bus_voltage_v,
             terminal_position_m: None,
             load_cell_force_n: None,
+            // The ESC1 wires no home-switch input: homing runs to the hard
+            // stop (`control.homing.method`).
+            home_switch: None,
+            power_stage_temperature_c: Some(self.temperature_c),
         }
     }
 
@@ -302,9 +302,17 @@ fn ADC1_2() {
             PwmCommand::OFF
         }
         IsrPhase::Running => {
-            let sample = s.sample(raw, encoder_count);
+            let mut sample = s.sample(raw, encoder_count);
             match s.link.controller() {
-                Some(c) => c.step(&sample),
+                Some(c) => {
+                    // What the core's own calibration (`Command::Calibrate`)
+                    // found on top of the codes measured at start-up.
+                    let [a, b, cc] = c.current_offsets_a();
+                    sample.phase_current_a[0] -= a;
+                    sample.phase_current_a[1] -= b;
+                    sample.phase_current_a[2] -= cc;
+                    c.step(&sample)
+                }
                 None => PwmCommand::OFF,
             }
         }
