@@ -107,9 +107,18 @@ impl Controller {
         if self.mode == Mode::Homing && !self.homing_backing_off {
             return self.homing_reference();
         }
-        let t = self.move_ticks as f32 * self.derived.position_period_s;
+        let t = self.move_time_s();
         self.move_ticks = self.move_ticks.saturating_add(1);
-        self.trajectory.sample(t)
+        let scale = self.move_time_scale;
+        let mut r = self.trajectory.sample(t);
+        if scale < 1.0 {
+            // The move runs slower: its clock falls behind, its velocity and
+            // acceleration shrink with it.
+            self.move_lag_s += (1.0 - scale) * self.derived.position_period_s;
+            r.velocity_m_s *= scale;
+            r.acceleration_m_s2 *= scale * scale;
+        }
+        r
     }
 
     /// One homing period; on contact the frame moves and the back-off starts.
@@ -194,6 +203,7 @@ impl Controller {
     /// left between that and `regen_bus_max_v`. Refusing the current would
     /// drop a hanging load; bounding the speed bounds the power instead.
     fn bound_regeneration(&mut self) {
+        self.move_time_scale = 1.0;
         let ps = &self.params.power_stage;
         if self.bus_voltage_v <= ps.regen_bus_start_v {
             return;
@@ -205,6 +215,9 @@ impl Controller {
         let share = crate::math::clamp((ps.regen_bus_max_v - self.bus_voltage_v) / (ps.regen_bus_max_v - ps.regen_bus_start_v), 0.0, 1.0);
         let speed_max = share * ps.regen_power_max_w / crate::math::max(torque_n_m.abs(), 1e-3);
         if self.speed_reference_rad_s.abs() > speed_max {
+            // Slow the move itself (its clock) so it does not run away from
+            // the rod, and bound this period's speed.
+            self.move_time_scale = speed_max / self.speed_reference_rad_s.abs();
             self.speed_reference_rad_s = speed_max.copysign(self.speed_reference_rad_s);
             self.acceleration_reference_rad_s2 = 0.0;
             self.limits.insert(LimitFlags::REGEN);

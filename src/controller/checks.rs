@@ -13,12 +13,6 @@ const SPEED_RATE_CAUSES: FaultSet = FaultSet(
     FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0 | FaultSet::OPEN_PHASE.0 | FaultSet::POWER_STAGE_OVERTEMP.0,
 );
 
-/// The back-EMF reading is only believed while the current loop follows its
-/// reference this closely and is off the voltage circle: a loop that cannot
-/// make its current (open lead, saturation) puts voltage on the winding that
-/// is no EMF.
-const EMF_TRUSTED_CURRENT_ERROR_A: f32 = 2.0;
-
 /// Conditions evaluated at the position-loop rate.
 const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
 
@@ -196,7 +190,7 @@ impl Controller {
         if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing) {
             self.speed_error_s = 0.0;
             self.no_count_s = 0.0;
-            self.emf_mismatch_s = 0.0;
+            self.emf_watch.reset();
             // With the bridge off nothing can be judged; an open phase shows
             // again within a window of the next enable.
             self.open_phase.reset();
@@ -226,17 +220,6 @@ impl Controller {
         if self.no_count_s >= f.encoder_lost_time_s {
             self.raise(FaultSet::ENCODER_LOST);
         }
-        let tracking = (self.current_reference.q - self.current_dq.q).abs() < EMF_TRUSTED_CURRENT_ERROR_A
-            && (self.current_reference.d - self.current_dq.d).abs() < EMF_TRUSTED_CURRENT_ERROR_A
-            && !self.limits.contains(crate::protection::LimitFlags::VOLTAGE);
-        if tracking && self.emf_speed_mismatch() {
-            self.emf_mismatch_s += dt;
-            if self.emf_mismatch_s >= self.params.power_stage.emf_mismatch_time_s {
-                self.raise(FaultSet::ENCODER_LOST);
-            }
-        } else {
-            self.emf_mismatch_s = 0.0;
-        }
         present
     }
 
@@ -245,24 +228,6 @@ impl Controller {
     /// the end of homing on.
     pub(super) fn stroke_limits_active(&self) -> bool {
         self.readiness.contains(crate::lifecycle::Readiness::HOMED) && self.mode != Mode::Homing
-    }
-
-    /// Back-EMF against the encoder: `|u − R i| / ψ` is the electrical speed
-    /// the winding sees, in whatever frame the encoder gives. A rotor that
-    /// slips while the counter stands still (a lost encoder under a
-    /// hanging load, even at standstill) shows speed there and none in the
-    /// counts. The commanded voltage stands for the applied one; below the
-    /// threshold the dead-time error and `L di/dt` hide in the margin.
-    fn emf_speed_mismatch(&self) -> bool {
-        let m = &self.params.motor;
-        let ed = self.voltage_dq.d - m.phase_resistance_ohm * self.current_dq.d;
-        let eq = self.voltage_dq.q - m.phase_resistance_ohm * self.current_dq.q;
-        let w_e_encoder = self.speed_rad_s() * m.pole_pairs as f32;
-        // Cross-coupling ω_e L i of the encoder's own speed is no mismatch.
-        let coupling = w_e_encoder.abs() * m.inductance_q_h * crate::math::sqrt(self.current_dq.d * self.current_dq.d + self.current_dq.q * self.current_dq.q);
-        let emf = crate::math::sqrt(ed * ed + eq * eq);
-        let w_e_emf = crate::math::max(emf - coupling, 0.0) / m.flux_linkage_wb;
-        w_e_emf - w_e_encoder.abs() > self.params.power_stage.emf_speed_mismatch_rad_s * m.pole_pairs as f32
     }
 
     /// Following error, overtravel and the soft limits, at the position rate.
@@ -292,6 +257,11 @@ impl Controller {
             if rest > l.stroke_max_m + f.stroke_soft_margin_m || rest < l.stroke_min_m - f.stroke_soft_margin_m {
                 self.raise(FaultSet::SOFT_LIMIT);
             }
+        }
+        if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing)
+            && self.emf_watch.update(&self.params, self.voltage_dq, self.current_dq, self.derived.position_period_s)
+        {
+            self.raise(FaultSet::ENCODER_LOST);
         }
         // The stop starts from the measured position: straying from it means
         // the load is winning. The brake must take it before the end stop.

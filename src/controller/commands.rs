@@ -120,7 +120,7 @@ impl Controller {
                 let l = &self.params.limits;
                 let (target, clamped) = clamp_to_stroke(position_m, l.stroke_min_m, l.stroke_max_m);
                 self.trajectory = ScurveMove::plan(self.trajectory.end_m(), target, &self.params.trajectory);
-                self.move_ticks = 0;
+                self.restart_move();
                 if clamped {
                     self.pending_limits.insert(LimitFlags::STROKE);
                     Ok(CommandOutcome::ClampedToStroke { position_m: target })
@@ -147,7 +147,7 @@ impl Controller {
                     target = t;
                 }
                 self.trajectory = ScurveMove::plan(self.trajectory.end_m(), target, &limits);
-                self.move_ticks = 0;
+                self.restart_move();
                 Ok(outcome)
             }
             Command::SetHome { position_m } => {
@@ -217,7 +217,7 @@ impl Controller {
                     Mode::Stopping => {
                         // Resume position control where the stop left it.
                         self.trajectory = ScurveMove::hold(self.position_command_m);
-                        self.move_ticks = 0;
+                        self.restart_move();
                         self.mode = Mode::Running;
                     }
                     _ => {}
@@ -329,7 +329,7 @@ impl Controller {
     pub(super) fn hold_here(&mut self) {
         let here = self.motor_position_m();
         self.trajectory = ScurveMove::hold(here);
-        self.move_ticks = 0;
+        self.restart_move();
         self.position_reference_m = here;
         self.position_command_m = here;
     }

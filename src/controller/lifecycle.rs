@@ -117,7 +117,7 @@ impl Controller {
         self.readiness.insert(Readiness::HOMED);
         self.hold_here();
         self.trajectory = ScurveMove::plan(self.motor_position_m(), target, &self.params.trajectory);
-        self.move_ticks = 0;
+        self.restart_move();
         self.homing_backing_off = true;
     }
 

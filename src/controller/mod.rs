@@ -24,7 +24,7 @@ use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
 use crate::load_estimate::LoadEstimator;
 use crate::motion::{EncoderTracker, ScurveMove, SpeedLoop, StopRamp};
 use crate::params::{ControlParams, ParamError, ValidatedParams};
-use crate::protection::{FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
+use crate::protection::{EmfWatch, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
 use core::f32::consts::PI;
 
@@ -124,6 +124,11 @@ pub struct Controller {
     speed_loop: SpeedLoop,
     trajectory: ScurveMove,
     move_ticks: u32,
+    /// How far the move's clock was held back (regeneration bound), s.
+    move_lag_s: f32,
+    /// Share of real time the move's clock advances next position period
+    /// (1, or less while regeneration is bounded).
+    move_time_scale: f32,
     /// External shift (`SetPositionShift`), the target…
     position_shift_m: f32,
     /// …and what is applied, moving towards it at the compensation's rate
@@ -154,8 +159,8 @@ pub struct Controller {
     speed_error_s: f32,
     /// How long the encoder has shown no count while told to turn.
     no_count_s: f32,
-    /// How long the back-EMF has shown more speed than the encoder.
-    emf_mismatch_s: f32,
+    /// The back-EMF's direction in the current loop's frame (lost encoder).
+    emf_watch: EmfWatch,
     count_at_last_speed_tick: i32,
     /// The q-current bound the speed loop had last (thermal and power-stage
     /// foldback, the d-current taken off the current circle), before the
@@ -247,6 +252,8 @@ impl Controller {
             speed_loop: SpeedLoop::new(&params),
             trajectory: ScurveMove::hold(0.0),
             move_ticks: 0,
+            move_lag_s: 0.0,
+            move_time_scale: 1.0,
             position_shift_m: 0.0,
             external_shift_applied_m: 0.0,
             compensator: Compensator::new(params.compensation.enabled_at_start),
@@ -267,7 +274,7 @@ impl Controller {
             current_sum_count: 0,
             speed_error_s: 0.0,
             no_count_s: 0.0,
-            emf_mismatch_s: 0.0,
+            emf_watch: EmfWatch::default(),
             count_at_last_speed_tick: 0,
             q_current_limit_a: 0.0,
             open_phase: OpenPhaseMonitor::new(),
@@ -342,7 +349,18 @@ impl Controller {
 
     /// True while a planned move has time left.
     pub fn move_in_progress(&self) -> bool {
-        (self.move_ticks as f32) * self.derived.position_period_s < self.trajectory.duration_s()
+        self.move_time_s() < self.trajectory.duration_s()
+    }
+
+    /// Time into the present move (its clock, held back while regeneration
+    /// is bounded).
+    fn move_time_s(&self) -> f32 {
+        self.move_ticks as f32 * self.derived.position_period_s - self.move_lag_s
+    }
+
+    fn restart_move(&mut self) {
+        self.move_ticks = 0;
+        self.move_lag_s = 0.0;
     }
 
     /// Normalised winding temperature of the I²t model (1 = continuous rating).

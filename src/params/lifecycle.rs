@@ -154,9 +154,10 @@ pub struct PowerStageParams {
     pub regen_bus_max_v: f32,
     /// Regenerated power the bus may take below `regen_bus_start_v`.
     pub regen_power_max_w: f32,
-    /// Encoder plausibility from the back-EMF: |ω_emf| − |ω_encoder|
-    /// (mechanical) above this for `emf_mismatch_time_s` latches
-    /// `encoder_lost` even at standstill (a slipping vertical load).
+    /// Encoder plausibility from the back-EMF (`protection::emf_watch`): the
+    /// EMF vector turning in the current loop's frame faster than this
+    /// (mechanical speed) for `emf_mismatch_time_s` latches `encoder_lost`,
+    /// even at standstill (a slipping vertical load).
     pub emf_speed_mismatch_rad_s: f32,
     pub emf_mismatch_time_s: f32,
 }

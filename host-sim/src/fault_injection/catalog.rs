@@ -102,7 +102,77 @@ pub fn all(rig: &RigConfig) -> Vec<Scenario> {
         out_of_stroke_setpoint(rig),
         isr_overrun(rig),
         core_hang(rig),
+        encoder_dropout_at_standstill(rig),
+        power_stage_hot(rig),
+        power_stage_overtemp(rig),
+        regeneration_on_a_high_bus(rig),
     ]
+}
+
+/// The encoder stops while the drive holds the rated vertical load at rest,
+/// and the load then grows a little (the platform moves): the frozen angle
+/// makes the held q current a stationary vector already at its torque peak,
+/// so the rotor slips. No count moves; the back-EMF does.
+pub fn encoder_dropout_at_standstill(rig: &RigConfig) -> Scenario {
+    Scenario {
+        name: "encoder_dropout_at_standstill",
+        what: "encoder frozen while holding the rated load at rest, then +300 N",
+        setup: base(rig),
+        injections: vec![
+            at(FAULT_AT_S, Injection::EncoderFrozen),
+            at(FAULT_AT_S + 0.01, Injection::ExternalForce { newtons: 300.0 }),
+        ],
+        commands: vec![],
+        duration_s: 1.0,
+        fault_at_s: Some(FAULT_AT_S),
+        expect: expect(FaultSet::ENCODER_LOST, Mode::Fault, 2000),
+    }
+}
+
+/// 90 °C on the heat sink while moving: the current limit folds back
+/// (80 → 100 °C), the move goes on.
+pub fn power_stage_hot(rig: &RigConfig) -> Scenario {
+    Scenario {
+        name: "power_stage_hot",
+        what: "heat sink at 90 °C while moving (foldback, no trip)",
+        setup: base(rig),
+        injections: vec![at(FAULT_AT_S, Injection::PowerStageTemperature { celsius: 90.0 })],
+        commands: moving(),
+        duration_s: 0.8,
+        fault_at_s: None,
+        expect: ride_through(),
+    }
+}
+
+/// 105 °C on the heat sink while moving: trip, brake, bridge off.
+pub fn power_stage_overtemp(rig: &RigConfig) -> Scenario {
+    Scenario {
+        name: "power_stage_overtemp",
+        what: "heat sink at 105 °C while moving",
+        setup: base(rig),
+        injections: vec![at(FAULT_AT_S, Injection::PowerStageTemperature { celsius: 105.0 })],
+        commands: moving(),
+        duration_s: 0.8,
+        fault_at_s: None,
+        expect: expect(FaultSet::POWER_STAGE_OVERTEMP, Mode::Fault, 40),
+    }
+}
+
+/// The bus stands at 57 V (a supply that cannot sink, capacitors charged
+/// by earlier braking) while the rated payload is lowered: the speed is
+/// bounded so the returned power stays inside what the bus may take, and
+/// nothing trips.
+pub fn regeneration_on_a_high_bus(rig: &RigConfig) -> Scenario {
+    Scenario {
+        name: "regeneration_on_a_high_bus",
+        what: "bus at 57 V while lowering the rated payload 100 mm",
+        setup: base(rig),
+        injections: vec![during(0.0, 2.0, Injection::BusVoltage { volts: 57.0 })],
+        commands: vec![CommandAt { at_s: MOVE_AT_S, command: Command::MoveTo { position_m: 0.15 } }],
+        duration_s: 2.0,
+        fault_at_s: None,
+        expect: ride_through(),
+    }
 }
 
 /// The scenario of this name.

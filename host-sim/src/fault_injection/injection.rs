@@ -40,6 +40,9 @@ pub enum Injection {
     /// The encoder counter stops at the value it had when the window
     /// opened (a broken cable, a dead sensor).
     EncoderFrozen,
+    /// The power stage's heat-sink reading at this temperature (a blocked
+    /// fan, a hot cabinet).
+    PowerStageTemperature { celsius: f32 },
     // --- plant level ---
     /// A motor phase disconnected from its inverter leg.
     OpenPhase { phase: usize },
@@ -75,6 +78,7 @@ impl Injection {
                 | Self::BusReadingNan
                 | Self::EncoderOffset { .. }
                 | Self::EncoderFrozen
+                | Self::PowerStageTemperature { .. }
         )
     }
 }
@@ -180,6 +184,7 @@ impl SensorCorruptor {
                         s.encoder_count = held;
                     }
                 }
+                Injection::PowerStageTemperature { celsius } => s.power_stage_temperature_c = Some(celsius),
                 Injection::OpenPhase { .. }
                 | Injection::BusVoltage { .. }
                 | Injection::ExternalForce { .. }
