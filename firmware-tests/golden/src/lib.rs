@@ -370,9 +370,12 @@ impl Family for ClosedLoop {
         "same f32 operations and the core's own f32 maths on both, replayed from the same samples: bit-identical";
 
     fn new() -> Self {
-        Self {
-            c: Controller::new(ControlParams::DEFAULT.commissioned()),
-        }
+        // The rigid plant carries no load and has no brake: nothing to
+        // preload, no brake to wait for.
+        let mut p = ControlParams::DEFAULT.commissioned();
+        p.startup.expected_load_force_n = 0.0;
+        p.brake.fitted = false;
+        Self { c: Controller::new(p) }
     }
 
     fn eval(&mut self, row: usize, i: &[u32], out: &mut [u32]) {
