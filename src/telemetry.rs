@@ -29,6 +29,10 @@ pub enum Mode {
     /// while the brake closes; the bridge goes off after
     /// `brake.engage_time_s` so the load never hangs on nothing.
     Braking,
+    /// `Enable` with a brake fitted: the loops hold and the hold current
+    /// builds for `brake.preload_time_s` with the brake still closed; then
+    /// `Running` (the brake told to open).
+    Preloading,
 }
 
 /// A snapshot of the drive, refreshed every position-loop period.

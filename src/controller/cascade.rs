@@ -91,7 +91,7 @@ impl Controller {
             self.limits.insert(LimitFlags::VOLTAGE);
         }
         // `step` decides the brake output for the whole period.
-        PwmCommand { duty: out.duty, enable: true, brake_release: self.brake_release }
+        PwmCommand { duty: out.duty, enable: true, brake_release: true }
     }
 
     /// The position reference for this period: the planned move, homing,

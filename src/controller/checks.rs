@@ -43,7 +43,7 @@ impl Controller {
         // A failed start-up step is not retried by a later `StartUp` step.
         self.start_up_sequence = false;
         if !self.faults.only_controlled_stop() {
-            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing)
+            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
                 && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
             // Short-circuit braking bridges the brake's engage time, where
             // the fault leaves the power stage and the supply trustworthy.
@@ -56,7 +56,7 @@ impl Controller {
             return;
         }
         match self.mode {
-            Mode::Running | Mode::Homing => self.begin_stop(),
+            Mode::Running | Mode::Homing | Mode::Preloading => self.begin_stop(),
             // Already decelerating to rest.
             Mode::Stopping | Mode::Braking => {}
             Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
@@ -90,6 +90,9 @@ impl Controller {
             self.present.intersection(SPEED_RATE_CAUSES)
         });
         present = present.union(if position_tick {
+            // The slow inputs are read at the rate they are used.
+            self.home_switch = s.home_switch;
+            self.power_stage_temperature_c = s.power_stage_temperature_c;
             self.check_motion()
         } else {
             self.present.intersection(POSITION_RATE_CAUSES)
@@ -187,7 +190,7 @@ impl Controller {
         let count = self.encoder.count();
         let moved = count != self.count_at_last_speed_tick;
         self.count_at_last_speed_tick = count;
-        if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing) {
+        if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading) {
             self.speed_error_s = 0.0;
             self.no_count_s = 0.0;
             self.emf_watch.reset();
@@ -243,7 +246,7 @@ impl Controller {
             present.insert(FaultSet::STROKE_OVERTRAVEL);
         }
         let following = (self.position_command_m - x).abs();
-        if matches!(self.mode, Mode::Running | Mode::Stopping) && following > f.position_following_error_m {
+        if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Preloading) && following > f.position_following_error_m {
             present.insert(FaultSet::POSITION_FOLLOWING);
         }
         let brake_stronger = self.params.brake.fitted
@@ -258,7 +261,7 @@ impl Controller {
                 self.raise(FaultSet::SOFT_LIMIT);
             }
         }
-        if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing)
+        if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
             && self.emf_watch.update(&self.params, self.voltage_dq, self.current_dq, self.derived.position_period_s)
         {
             self.raise(FaultSet::ENCODER_LOST);

@@ -94,7 +94,7 @@ impl Controller {
             Command::Enable => self.enable(),
             Command::Disable => {
                 self.start_up_sequence = false;
-                if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Homing) {
+                if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Homing | Mode::Preloading) {
                     // Stop, let the brake close under the loops, then switch off.
                     let v = self.speed_rad_s() * self.params.metres_per_rad();
                     self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
@@ -190,7 +190,7 @@ impl Controller {
                         self.enable()?;
                         self.begin_homing();
                     }
-                    Mode::Running if !self.move_in_progress() => self.begin_homing(),
+                    Mode::Running | Mode::Preloading if !self.move_in_progress() => self.begin_homing(),
                     _ => return Err(CommandError::Busy),
                 }
                 Ok(CommandOutcome::Accepted)
@@ -256,12 +256,13 @@ impl Controller {
             return Err(CommandError::BusLow);
         }
         match self.mode {
-            Mode::Running | Mode::Homing => return Ok(CommandOutcome::Accepted),
+            Mode::Running | Mode::Homing | Mode::Preloading => return Ok(CommandOutcome::Accepted),
             // The loops are holding: keep them, open the brake again.
             Mode::Braking => {
                 self.hold_here();
-                self.brake_release = true;
                 self.brake_periods = self.derived.brake_preload_periods;
+                self.mode = Mode::Running;
+                return Ok(CommandOutcome::Accepted);
             }
             Mode::Disabled => {
                 self.hold_here();
@@ -270,12 +271,11 @@ impl Controller {
                     self.speed_loop.preload(self.hold_current_q_a);
                     self.current_reference = Dq { d: 0.0, q: self.hold_current_q_a };
                 }
-                self.brake_release = !self.params.brake.fitted;
                 self.brake_periods = 0;
             }
             _ => return Err(CommandError::Busy),
         }
-        self.mode = Mode::Running;
+        self.mode = if self.params.brake.fitted { Mode::Preloading } else { Mode::Running };
         Ok(CommandOutcome::Accepted)
     }
 
@@ -295,7 +295,7 @@ impl Controller {
         if !self.readiness.contains(Readiness::COMMUTATED) {
             return Err(CommandError::NotCommutated);
         }
-        if self.mode != Mode::Running {
+        if !matches!(self.mode, Mode::Running | Mode::Preloading) {
             return Err(CommandError::NotRunning);
         }
         if self.move_in_progress() {

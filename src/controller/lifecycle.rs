@@ -34,7 +34,7 @@ impl Controller {
                     return;
                 }
             }
-            if self.mode == Mode::Running {
+            if matches!(self.mode, Mode::Running | Mode::Preloading) {
                 self.begin_homing();
             }
         } else {
@@ -93,7 +93,6 @@ impl Controller {
                     self.hold_current_q_a = r.current_q_a;
                     self.speed_loop.preload(r.current_q_a);
                     self.current_reference = Dq { d: 0.0, q: r.current_q_a };
-                    self.brake_release = true;
                     self.brake_periods = u32::MAX;
                     self.mode = Mode::Running;
                     self.next_start_up_step();

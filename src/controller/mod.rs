@@ -175,8 +175,6 @@ pub struct Controller {
     /// PWM periods since the brake was told to open (Running, Stopping) or
     /// to close (Braking, once the stop ramp is at rest).
     brake_periods: u32,
-    /// The brake output while driving: closed during `Enable`'s preload.
-    brake_release: bool,
     /// q current that held the load when the brake last closed, or that the
     /// commutation measured: `Enable` builds it before the brake lets go.
     hold_current_q_a: f32,
@@ -280,7 +278,6 @@ impl Controller {
             open_phase: OpenPhaseMonitor::new(),
             open_phase_present: false,
             brake_periods: 0,
-            brake_release: true,
             hold_current_q_a: expected_load_current_q_a(&params),
             short_circuit_periods: 0,
             bus_voltage_v: 0.0,
@@ -413,28 +410,26 @@ impl Controller {
             self.raise(FaultSet::ENCODER_JUMP);
         }
         let (speed_tick, position_tick) = self.next_ticks();
-        if position_tick {
-            self.home_switch = s.home_switch;
-            self.power_stage_temperature_c = s.power_stage_temperature_c;
-        }
         self.latch_conditions(present, s, speed_tick, position_tick);
 
         // Brake output: open (true) from `current_period` while driving,
         // closed (false) in `PwmCommand::OFF` and the short circuit; only
         // `Braking`, `Enable`'s preload and the start-up steps decide per
         // period. Without a brake nothing is wired to it.
+        // Driving first: it is the 20 kHz case the cycle budget is for.
         let out = match self.mode {
-            Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
-            Mode::Disabled | Mode::Fault => self.bridge_off(),
-            Mode::Calibrating => self.calibration_period(s),
-            Mode::Aligning => self.commutation_period(s, position_tick),
             Mode::Running | Mode::Stopping | Mode::Homing => {
                 if position_tick {
                     self.brake_tick();
                 }
                 self.run_period(s, position_tick, speed_tick)
             }
+            Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
+            Mode::Disabled | Mode::Fault => self.bridge_off(),
+            Mode::Calibrating => self.calibration_period(s),
+            Mode::Aligning => self.commutation_period(s, position_tick),
             Mode::Braking => self.braking_period(s, position_tick, speed_tick),
+            Mode::Preloading => self.preload_period(s, position_tick, speed_tick),
         };
         if position_tick {
             self.cut_telemetry();

@@ -22,7 +22,7 @@ impl Controller {
     /// `Enable`.
     pub(super) fn brake_opening(&self) -> bool {
         self.params.brake.fitted
-            && matches!(self.mode, Mode::Running | Mode::Homing)
+            && matches!(self.mode, Mode::Running | Mode::Homing | Mode::Preloading)
             && self.brake_periods < self.derived.brake_preload_periods + self.derived.brake_release_periods
     }
 
@@ -34,7 +34,9 @@ impl Controller {
         self.homing_tick();
         self.brake_periods = self.brake_periods.saturating_add(self.params.rates.position_loop_divider);
         // The hold current builds with the brake closed; then it lets go.
-        self.brake_release = self.brake_periods >= self.derived.brake_preload_periods;
+        if self.mode == Mode::Preloading && self.brake_periods >= self.derived.brake_preload_periods {
+            self.mode = Mode::Running;
+        }
         if self.mode == Mode::Stopping
             && self.params.brake.fitted
             && self.stop.at_rest()
@@ -45,6 +47,17 @@ impl Controller {
             self.brake_periods = 0;
             self.mode = Mode::Braking;
         }
+    }
+
+    /// `Preloading`: the loops hold, the brake stays closed.
+    #[inline(never)]
+    pub(super) fn preload_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
+        if position_tick {
+            self.brake_tick();
+        }
+        let mut out = self.run_period(s, position_tick, speed_tick);
+        out.brake_release = false;
+        out
     }
 
     /// `Braking`: the loops hold while the brake closes, then the bridge
