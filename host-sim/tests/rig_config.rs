@@ -6,7 +6,7 @@ use servo_core::ControlParams;
 #[test]
 fn shipped_control_table_is_the_firmware_default() {
     let rig = RigConfig::nominal().expect("shipped rig parses and validates");
-    assert_eq!(rig.control, ControlParams::DEFAULT, "params/rig.toml [control] drifted from src/params.rs");
+    assert_eq!(rig.control, ControlParams::DEFAULT, "params/rig.toml [control] drifted from src/params/mod.rs");
 }
 
 #[test]

@@ -253,7 +253,7 @@ impl Controller {
             && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m;
         let stop_failed =
             matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
-        if self.mode == Mode::Running && homed {
+        if matches!(self.mode, Mode::Running | Mode::Preloading) && homed {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();
             let rest = x + v * v.abs() / (2.0 * f.stop_deceleration_m_s2);

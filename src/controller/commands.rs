@@ -83,6 +83,10 @@ pub enum CommandError {
     NotHomed,
 }
 
+/// Largest user position `SetHome` takes: far beyond any stroke, small
+/// enough that positions and angles stay exact to a count in `f32`.
+const HOME_POSITION_MAX_M: f32 = 100.0;
+
 /// Faults after which the electrical offset and the reference are not
 /// trusted any more (the counter may have lost or gained counts).
 const LOSES_POSITION: FaultSet = FaultSet(FaultSet::ENCODER_JUMP.0 | FaultSet::ENCODER_LOST.0 | FaultSet::WATCHDOG_RESET.0);
@@ -153,6 +157,9 @@ impl Controller {
             Command::SetHome { position_m } => {
                 if !position_m.is_finite() {
                     return Err(CommandError::NotFinite);
+                }
+                if position_m.abs() > HOME_POSITION_MAX_M {
+                    return Err(CommandError::OutOfRange);
                 }
                 if matches!(self.mode, Mode::Calibrating | Mode::Aligning | Mode::Homing) || self.move_in_progress() {
                     return Err(CommandError::Busy);

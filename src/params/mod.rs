@@ -11,6 +11,7 @@ use core::f32::consts::PI;
 mod lifecycle;
 mod validate;
 pub use lifecycle::*;
+pub use validate::{ParamError, ValidatedParams};
 
 #[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
@@ -569,43 +570,8 @@ impl ControlParams {
     };
 }
 
-/// A parameter set that passed [`ControlParams::validate`]. A controller
-/// built from one needs no check at run time: the firmware makes its set in
-/// a `const`, so an invalid one is a compile error naming the field (and the
-/// image carries neither the checks nor their messages).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ValidatedParams(ControlParams);
-
-impl ValidatedParams {
-    pub const fn new(p: ControlParams) -> Result<Self, ParamError> {
-        match p.validate() {
-            Ok(()) => Ok(Self(p)),
-            Err(e) => Err(e),
-        }
-    }
-
-    pub const fn get(&self) -> &ControlParams {
-        &self.0
-    }
-}
-
 impl Default for ControlParams {
     fn default() -> Self {
         Self::DEFAULT
     }
 }
-
-/// A parameter that cannot be used, named by its path in the TOML file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ParamError {
-    pub field: &'static str,
-    pub reason: &'static str,
-}
-
-impl core::fmt::Display for ParamError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "parameter `{}`: {}", self.field, self.reason)
-    }
-}
-

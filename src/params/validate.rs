@@ -1,7 +1,41 @@
 //! `ControlParams::validate`: every field checked, the first bad one named.
 //! A `const fn`, so the firmware's set is checked when the image is built.
 
-use super::{ControlParams, ParamError};
+use super::ControlParams;
+
+/// A parameter that cannot be used, named by its path in the TOML file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ParamError {
+    pub field: &'static str,
+    pub reason: &'static str,
+}
+
+impl core::fmt::Display for ParamError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "parameter `{}`: {}", self.field, self.reason)
+    }
+}
+
+/// A parameter set that passed [`ControlParams::validate`]. A controller
+/// built from one needs no check at run time: the firmware makes its set in
+/// a `const`, so an invalid one is a compile error naming the field (and the
+/// image carries neither the checks nor their messages).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValidatedParams(ControlParams);
+
+impl ValidatedParams {
+    pub const fn new(p: ControlParams) -> Result<Self, ParamError> {
+        match p.validate() {
+            Ok(()) => Ok(Self(p)),
+            Err(e) => Err(e),
+        }
+    }
+
+    pub const fn get(&self) -> &ControlParams {
+        &self.0
+    }
+}
 
 const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
