@@ -9,6 +9,7 @@ pub mod config;
 pub mod diagnose;
 pub mod fault_injection;
 pub mod plant;
+pub mod platform;
 pub mod report;
 pub mod scenario;
 pub mod sim;
