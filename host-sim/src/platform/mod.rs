@@ -7,7 +7,11 @@
 pub mod dynamics;
 pub mod geometry;
 pub mod kinematics;
+pub mod plots;
 pub mod pose_error;
+pub mod run;
+pub mod table4;
+pub mod table4_md;
 pub mod trajectory;
 
 pub use dynamics::{LegForces, PoseState, GRAVITY_M_S2};
