@@ -15,7 +15,7 @@
 //! The screw inertia is lumped at the nut end of the torsional path, so the
 //! whole rotor-to-nut twist (coupling + δθ5) is one spring.
 
-use super::deformation::Compliance;
+use super::deformation::{AxialWarmStart, Compliance};
 use super::effects::EffectDynamics;
 use super::friction::{RodFriction, ScrewFriction};
 use super::frames;
@@ -149,6 +149,16 @@ impl Model {
     /// and is updated with its answer.
     #[inline]
     pub fn evaluate(&self, s: &StateVec, inp: &Inputs, force_guess: &mut f64) -> Eval {
+        let mut warm = AxialWarmStart::from_force(*force_guess);
+        let e = self.evaluate_warm(s, inp, &mut warm);
+        *force_guess = warm.force_n;
+        e
+    }
+
+    /// `evaluate` with the axial-force inversion warm-started from the
+    /// tangent at the last answer (see `Compliance::axial_force_warm`).
+    #[inline]
+    pub fn evaluate_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut AxialWarmStart) -> Eval {
         let (i_d, i_q, th_m, w_m, th_s, w_s, x, v) =
             (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
         let (sin_e, cos_e) = (self.motor.pole_pairs * th_m).sin_cos();
@@ -176,10 +186,12 @@ impl Model {
         // `ratio` = dx_s/dθ_s: L/2π, unless a lead error bends the thread.
         let (screw_position, ratio) = self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
         let axial_spring_force = match self.fx.engaged_deflection(screw_position - x) {
-            Some(d) => self.compliance.axial_force_n(d, x, *force_guess),
-            None => 0.0,
+            Some(d) => self.compliance.axial_force_warm(d, x, warm),
+            None => {
+                *warm = AxialWarmStart::default();
+                0.0
+            }
         };
-        *force_guess = axial_spring_force;
         let mut axial_force = axial_spring_force + self.c_ax * (ratio * w_s - v);
         if self.fx.has_gap() {
             axial_force = self.fx.contact_force(axial_spring_force, axial_force);
