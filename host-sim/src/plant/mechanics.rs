@@ -18,7 +18,7 @@
 use super::deformation::{AxialWarmStart, Compliance};
 use super::effects::EffectDynamics;
 use super::friction::{RodFriction, ScrewFriction};
-use super::frames;
+use super::frames::{self, SinCosCache};
 use super::inverter::{self, Drive};
 use super::motor::Motor;
 use super::params::PlantParams;
@@ -35,6 +35,14 @@ pub const THETA_S: usize = 4;
 pub const OMEGA_S: usize = 5;
 pub const X_ROD: usize = 6;
 pub const V_ROD: usize = 7;
+
+/// What one right-hand-side evaluation leaves for the next (no effect on
+/// the answer beyond rounding; see `Model::evaluate_warm`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WarmStart {
+    pub axial: AxialWarmStart,
+    pub angle: SinCosCache,
+}
 
 /// What is held constant through one RK4 step.
 #[derive(Clone, Copy, Debug)]
@@ -149,19 +157,20 @@ impl Model {
     /// and is updated with its answer.
     #[inline]
     pub fn evaluate(&self, s: &StateVec, inp: &Inputs, force_guess: &mut f64) -> Eval {
-        let mut warm = AxialWarmStart::from_force(*force_guess);
+        let mut warm = WarmStart { axial: AxialWarmStart::from_force(*force_guess), ..WarmStart::default() };
         let e = self.evaluate_warm(s, inp, &mut warm);
-        *force_guess = warm.force_n;
+        *force_guess = warm.axial.force_n;
         e
     }
 
-    /// `evaluate` with the axial-force inversion warm-started from the
-    /// tangent at the last answer (see `Compliance::axial_force_warm`).
+    /// `evaluate`, carrying from one call to the next what makes the next
+    /// cheaper: the axial-force inversion's tangent (see
+    /// `Compliance::axial_force_warm`) and the electrical angle's sin/cos.
     #[inline]
-    pub fn evaluate_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut AxialWarmStart) -> Eval {
+    pub fn evaluate_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut WarmStart) -> Eval {
         let (i_d, i_q, th_m, w_m, th_s, w_s, x, v) =
             (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
-        let (sin_e, cos_e) = (self.motor.pole_pairs * th_m).sin_cos();
+        let (sin_e, cos_e) = warm.angle.sin_cos(self.motor.pole_pairs * th_m);
         let (u_d, u_q) = match (inp.drive, inp.open_phase) {
             (Drive::Pwm(duty), None) => {
                 let u = inverter::pwm_phase_voltages(duty, inp.bus_v);
@@ -186,9 +195,9 @@ impl Model {
         // `ratio` = dx_s/dθ_s: L/2π, unless a lead error bends the thread.
         let (screw_position, ratio) = self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
         let axial_spring_force = match self.fx.engaged_deflection(screw_position - x) {
-            Some(d) => self.compliance.axial_force_warm(d, x, warm),
+            Some(d) => self.compliance.axial_force_warm(d, x, &mut warm.axial),
             None => {
-                *warm = AxialWarmStart::default();
+                warm.axial = AxialWarmStart::default();
                 0.0
             }
         };
