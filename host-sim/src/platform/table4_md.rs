@@ -40,15 +40,15 @@ fn set_section(out: &mut String, set: &LegSet, c: &PaperClaims, r: &SetResult) {
         ("attitude error before, °", triple(&r.error_before.attitude_deg, 5), triple(&r.linear_before.attitude_deg, 5), claim(&c.before_attitude_deg, 5)),
         ("position error after, mm", triple(&r.error_after.position_mm, 4), triple(&r.linear_after.position_mm, 4), claim(&c.after_position_mm, 5)),
         ("attitude error after, °", triple(&r.error_after.attitude_deg, 5), triple(&r.linear_after.attitude_deg, 5), claim(&c.after_attitude_deg, 6)),
-        ("improvement (|before| − |after|), mm", triple(&r.improvement.position_mm, 4), "–".into(), triple(&c.improvement_position_mm, 4)),
-        ("improvement (|before| − |after|), °", triple(&r.improvement.attitude_deg, 5), "–".into(), triple(&c.improvement_attitude_deg, 5)),
+        ("improvement, abs(before) − abs(after), mm", triple(&r.improvement.position_mm, 4), "–".into(), triple(&c.improvement_position_mm, 4)),
+        ("improvement, abs(before) − abs(after), °", triple(&r.improvement.attitude_deg, 5), "–".into(), triple(&c.improvement_attitude_deg, 5)),
     ];
     for (name, ours, lin, paper) in rows {
         let _ = writeln!(out, "| {name} | {ours} | {lin} | {paper} |");
     }
     let _ = writeln!(
         out,
-        "\nLinearised minus exact, largest component: {:.2e} mm, {:.2e}°. Forward kinematics: every one of the 13 Newton starts of the uniqueness check agreed (smallest count {}).\n",
+        "\nLinearised minus exact, largest component: {:.2e} mm, {:.2e}°. Uniqueness check: at least {} of the 13 Newton starts converged, all to the pose shown (a start landing elsewhere nearby is refused as ambiguous).\n",
         r.linear_vs_exact_position_mm, r.linear_vs_exact_attitude_deg, r.fk_starts_agreeing_min
     );
     if let Some(implied) = r.legs_implied_by_paper_before_mm {
@@ -82,9 +82,10 @@ pub fn markdown(p: &Platform, results: &[SetResult]) -> String {
     let _ = writeln!(
         out,
         "- Set 1, leg 3 after compensation is printed 643.4422 mm against 653.7000 given: {:+.4} mm, {:.0}× the largest other leg's error after. \
-         Taken as printed, compensation makes set 1 worse (the improvement row above is negative).",
+         Taken as printed, compensation changes set 1's position error by {} mm (improvement; negative = worse).",
         s1.after_mm[2] - s1.given_mm[2],
-        (s1.after_mm[2] - s1.given_mm[2]).abs() / others
+        (s1.after_mm[2] - s1.given_mm[2]).abs() / others,
+        triple(&results[0].improvement.position_mm, 4)
     );
     let mut fixed = *s1;
     fixed.name = "set 1, leg 3 after read as 653.4422 (a hypothesis, not the table)";
