@@ -62,6 +62,9 @@ enum Cmd {
         /// Platform geometry (TOML); default: Table 3 (params/platform.toml).
         #[arg(long)]
         geometry: Option<PathBuf>,
+        /// Rig file for the six closed-loop legs; default: the shipped rig.
+        #[arg(long)]
+        params: Option<PathBuf>,
     },
     Dataset {
         #[arg(long)]
@@ -91,12 +94,13 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
-        Cmd::Platform { out, geometry } => {
+        Cmd::Platform { out, geometry, params } => {
             let g = match geometry {
                 Some(path) => host_sim::platform::Geometry::load(&path)?,
                 None => host_sim::platform::Geometry::paper(),
             };
-            let summary = host_sim::platform::run::run(g, &out)?;
+            let rig = RigConfig::load_or_nominal(params.as_ref())?;
+            let summary = host_sim::platform::run::run(g, Some(&rig), &out)?;
             report::write_summary(&summary, &out)?;
             println!("{}", serde_json::to_string_pretty(&summary)?);
             println!("wrote {}/{{summary.json, table4.md, geometry.png, *_pose_*.png, *_leg_*.png}}", out.display());

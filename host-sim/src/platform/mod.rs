@@ -10,6 +10,7 @@ pub mod kinematics;
 pub mod plots;
 pub mod pose_error;
 pub mod run;
+pub mod six_legs;
 pub mod table4;
 pub mod table4_md;
 pub mod trajectory;

@@ -1,0 +1,30 @@
+//! Six closed-loop legs (real control core + full plant each) under the
+//! plate: at rest after a move every motor side sits on its target, and
+//! each rod sits behind it by a deformation whose sign is the sign of that
+//! leg's axial load (compression shortens the leg).
+
+use host_sim::config::RigConfig;
+use host_sim::platform::six_legs::run_moves;
+use host_sim::platform::table4::PAPER_SETS;
+use host_sim::platform::Platform;
+
+#[test]
+fn legs_reach_table4_lengths_and_deform_with_their_loads() {
+    let p = Platform::paper();
+    let rig = RigConfig::nominal().unwrap();
+    let target = PAPER_SETS[1].given_mm.map(|v| v * 1e-3);
+    let run = run_moves(&p, &rig, &[target], false, 3).unwrap();
+    let m = &run.moves[0];
+    for i in 0..6 {
+        assert!(m.motor_side_error_um[i].abs() < 5.0, "leg {}: motor side {} µm", i + 1, m.motor_side_error_um[i]);
+        let deformation = m.terminal_error_um[i] - m.motor_side_error_um[i];
+        if m.leg_forces_n[i].abs() > 20.0 {
+            assert!(deformation * m.leg_forces_n[i] < 0.0, "leg {}: {deformation} µm under {} N", i + 1, m.leg_forces_n[i]);
+        }
+    }
+    // The pose error is what forward kinematics makes of those rod errors:
+    // it cannot exceed the largest leg error by more than the geometry's
+    // amplification, and it is not zero.
+    let pos = m.pose_error_position_mm.iter().map(|v| v * v).sum::<f64>().sqrt();
+    assert!(pos > 0.0 && pos < 1.0, "{pos} mm");
+}
