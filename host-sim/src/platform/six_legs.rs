@@ -51,6 +51,9 @@ pub struct MoveResult {
     pub pose_error_position_mm: [f64; 3],
     pub pose_error_attitude_deg: [f64; 3],
     pub leg_forces_n: [f64; 6],
+    /// What each drive train carries: the leg force plus the weight of the
+    /// rod and upper leg along the leg (compression positive).
+    pub drive_train_load_n: [f64; 6],
 }
 
 /// A whole run.
@@ -194,6 +197,7 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, targets_m: &[[f64; 6]], compensa
             pose_error_position_mm: [d[0] * 1e3, d[1] * 1e3, d[2] * 1e3],
             pose_error_attitude_deg: [d[3].to_degrees(), d[4].to_degrees(), d[5].to_degrees()],
             leg_forces_n: last_forces,
+            drive_train_load_n: std::array::from_fn(|i| legs[i].cl.plant.state().load_force_n),
         });
     }
     let simulated_s = legs[0].cl.time_s();
