@@ -16,8 +16,8 @@
 //!   references and not the rods).
 //! - Each leg's plant carries the upper-leg mass (Table 3, 13 kg) on its rod
 //!   instead of the single-leg rig's payload; the plate and payload act only
-//!   through the forces. Legs run on two scoped threads (std), not rayon,
-//!   which is not among the crates this build has.
+//!   through the forces. Legs run on two threads (std; rayon is not among
+//!   the crates this build has), synchronised every position-loop period.
 
 use super::dynamics::PoseState;
 use super::kinematics::{Platform, Pose};
@@ -74,7 +74,7 @@ pub struct SixLegRun {
 /// exactly l_min that would already be outside the workspace.
 pub const START_STROKE_M: f64 = 0.005;
 
-fn new_leg(rig: &RigConfig, p: &Platform, i: usize, seed: u64, start: &Pose, force_n: f64, compensation: bool) -> Result<LegLoop> {
+fn new_leg(rig: &RigConfig, p: &Platform, i: usize, seed: u64, start: &Pose, force_n: f64, compensation: bool) -> Result<Box<LegLoop>> {
     let mut params = rig.plant.clone();
     params.rod.payload_mass_kg = p.geometry.upper_leg_mass_kg;
     let mut plant = Plant::try_new(params, seed.wrapping_mul(7).wrapping_add(i as u64)).map_err(|e| anyhow!("leg {}: {e}", i + 1))?;
@@ -94,29 +94,56 @@ fn new_leg(rig: &RigConfig, p: &Platform, i: usize, seed: u64, start: &Pose, for
     cl.controller
         .command(Command::SetCompensation { enabled: compensation })
         .map_err(|e| anyhow!("leg {}: compensation refused: {e:?}", i + 1))?;
-    Ok(LegLoop { cl })
+    Ok(Box::new(LegLoop { cl }))
 }
 
-/// Advances every leg by `periods` PWM periods, three legs per thread.
-fn step_legs(legs: &mut [LegLoop], periods: u64) -> Result<()> {
-    let run = |chunk: &mut [LegLoop]| -> Result<()> {
-        for leg in chunk {
-            for _ in 0..periods {
-                let tel = leg.cl.step();
-                if !tel.faults.is_empty() {
-                    bail!("fault {:?} latched at t = {:.4} s", tel.faults, leg.cl.time_s());
-                }
+fn step_chunk(chunk: &mut [Box<LegLoop>], periods: u64) -> Result<()> {
+    for leg in chunk {
+        for _ in 0..periods {
+            let tel = leg.cl.step();
+            if !tel.faults.is_empty() {
+                bail!("fault {:?} latched at t = {:.4} s", tel.faults, leg.cl.time_s());
             }
         }
-        Ok(())
-    };
-    let (a, b) = legs.split_at_mut(3);
-    std::thread::scope(|s| {
-        let h = s.spawn(|| run(b));
-        let ra = run(a);
-        let rb = h.join().unwrap_or_else(|_| Err(anyhow!("a leg thread panicked")));
+    }
+    Ok(())
+}
+
+type Batch = (Vec<Box<LegLoop>>, u64);
+
+/// A second thread that lives through the run: it is handed legs 4–6 (the
+/// boxes move, not the legs) for each position-loop period and hands them
+/// back, while the calling thread steps legs 1–3. A thread spawned per
+/// period would cost a good part of the period's work.
+struct Worker {
+    to: std::sync::mpsc::Sender<Batch>,
+    from: std::sync::mpsc::Receiver<(Vec<Box<LegLoop>>, Result<()>)>,
+}
+
+impl Worker {
+    fn spawn() -> Self {
+        let (to, rx) = std::sync::mpsc::channel::<Batch>();
+        let (tx, from) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for (mut legs, periods) in rx {
+                let r = step_chunk(&mut legs, periods);
+                if tx.send((legs, r)).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { to, from }
+    }
+
+    /// Advances every leg by `periods` PWM periods, three per thread.
+    fn step(&self, legs: &mut Vec<Box<LegLoop>>, periods: u64) -> Result<()> {
+        let back = legs.split_off(3);
+        self.to.send((back, periods)).map_err(|_| anyhow!("the leg thread is gone"))?;
+        let ra = step_chunk(legs, periods);
+        let (back, rb) = self.from.recv().map_err(|_| anyhow!("the leg thread is gone"))?;
+        legs.extend(back);
         ra.and(rb)
-    })
+    }
 }
 
 /// From rest at l_0 (every leg retracted, Table 3's initial length), moves
@@ -127,7 +154,8 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, targets_m: &[[f64; 6]], compensa
     let start = p.forward(&[l0 + START_STROKE_M; 6], &p.home()).map_err(|e| anyhow!("start pose: {e}"))?.pose;
     let at_rest = |pose: Pose| PoseState { pose, velocity: Vector6::zeros(), acceleration: Vector6::zeros() };
     let f0 = p.leg_forces(&at_rest(start)).map_err(|e| anyhow!("start pose: {e}"))?.forces_n;
-    let mut legs: Vec<LegLoop> = (0..6).map(|i| new_leg(rig, p, i, seed, &start, f0[i], compensation)).collect::<Result<_>>()?;
+    let worker = Worker::spawn();
+    let mut legs: Vec<Box<LegLoop>> = (0..6).map(|i| new_leg(rig, p, i, seed, &start, f0[i], compensation)).collect::<Result<_>>()?;
     let divider = u64::from(rig.control.rates.position_loop_divider);
     let dt = divider as f64 / f64::from(rig.control.rates.pwm_frequency_hz);
     let mut pose = start;
@@ -143,8 +171,8 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, targets_m: &[[f64; 6]], compensa
     // back explicitly, one period late, onto 17 kg rods is the classic
     // added-mass instability of explicit co-simulation. The rods follow
     // their references to micrometres, so the loads differ by as little.
-    let couple = |legs: &mut [LegLoop], hist: &mut [Vector6<f64>; 3], pose: &mut Pose| -> Result<[f64; 6]> {
-        step_legs(legs, divider)?;
+    let couple = |legs: &mut Vec<Box<LegLoop>>, hist: &mut [Vector6<f64>; 3], pose: &mut Pose| -> Result<[f64; 6]> {
+        worker.step(legs, divider)?;
         let lengths: [f64; 6] = std::array::from_fn(|i| lmin + f64::from(legs[i].cl.controller.telemetry().position_reference_m));
         *pose = p.newton(&lengths, pose).map_err(|e| anyhow!("t = {:.4} s: {e}", legs[0].cl.time_s()))?.pose;
         hist.rotate_right(1);
