@@ -71,6 +71,9 @@ pub struct PlatformSummary {
     /// (set 1, set 2): without and with the observer's compensation.
     pub six_legs_uncompensated: Option<super::six_legs::SixLegRun>,
     pub six_legs_compensated: Option<super::six_legs::SixLegRun>,
+    /// The same with the legs' rigs spread within ±10 % (`RigSpread::TEN_PERCENT`).
+    pub six_legs_spread_uncompensated: Option<super::six_legs::SixLegRun>,
+    pub six_legs_spread_compensated: Option<super::six_legs::SixLegRun>,
     pub wall_s: f64,
 }
 
@@ -148,13 +151,11 @@ pub fn run(geometry: Geometry, rig: Option<&crate::config::RigConfig>, out: &Pat
     }
     plots::geometry_png(&p, &out.join("geometry.png"))?;
     let targets: Vec<[f64; 6]> = super::table4::PAPER_SETS.iter().map(|s| s.given_mm.map(|v| v * 1e-3)).collect();
-    let (six_off, six_on) = match rig {
-        Some(rig) => (
-            Some(super::six_legs::run_moves(&p, rig, &targets, false, 1)?),
-            Some(super::six_legs::run_moves(&p, rig, &targets, true, 1)?),
-        ),
-        None => (None, None),
+    let six = |spread: &super::six_legs::RigSpread, compensation: bool| -> Result<Option<super::six_legs::SixLegRun>> {
+        rig.map(|rig| super::six_legs::run_moves(&p, rig, spread, &targets, compensation, 1)).transpose()
     };
+    let (none, ten) = (super::six_legs::RigSpread::NONE, super::six_legs::RigSpread::TEN_PERCENT);
+    let (six_off, six_on, spread_off, spread_on) = (six(&none, false)?, six(&none, true)?, six(&ten, false)?, six(&ten, true)?);
     let neutral = p.leg_forces(&super::PoseState {
         pose: p.neutral(),
         velocity: nalgebra::Vector6::zeros(),
@@ -179,6 +180,8 @@ pub fn run(geometry: Geometry, rig: Option<&crate::config::RigConfig>, out: &Pat
         closed_loop_status: "pose_error_* (combined cueing profile) not run: the core has no streamed-setpoint mode; six_legs_* are rest-to-rest moves to Table 4's given lengths",
         six_legs_uncompensated: six_off,
         six_legs_compensated: six_on,
+        six_legs_spread_uncompensated: spread_off,
+        six_legs_spread_compensated: spread_on,
         geometry: p.geometry,
         wall_s: t0.elapsed().as_secs_f64(),
     })

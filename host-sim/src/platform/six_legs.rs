@@ -60,6 +60,7 @@ pub struct MoveResult {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SixLegRun {
     pub compensation: bool,
+    pub rig_spread: RigSpread,
     pub moves: Vec<MoveResult>,
     pub simulated_s: f64,
     pub wall_s: f64,
@@ -69,14 +70,53 @@ pub struct SixLegRun {
     pub pose_error_attitude_max_deg: f64,
 }
 
+/// How the six legs' rigs differ from the shipped one: leg i's moving mass
+/// (rod + upper leg) times `mass_scale[i]`, its drive train's stiffness
+/// (every deformation term, δ1…δ5) times `stiffness_scale[i]`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct RigSpread {
+    pub mass_scale: [f64; 6],
+    pub stiffness_scale: [f64; 6],
+}
+
+impl RigSpread {
+    pub const NONE: Self = Self { mass_scale: [1.0; 6], stiffness_scale: [1.0; 6] };
+    /// A fixed spread within ±10 %, no two legs alike.
+    pub const TEN_PERCENT: Self = Self {
+        mass_scale: [1.10, 0.92, 1.04, 0.90, 0.97, 1.07],
+        stiffness_scale: [0.90, 1.06, 1.10, 0.95, 1.02, 0.93],
+    };
+
+    fn apply(&self, i: usize, params: &mut crate::plant::PlantParams) {
+        params.rod.payload_mass_kg *= self.mass_scale[i];
+        params.rod.nut_rod_mass_kg *= self.mass_scale[i];
+        let k = self.stiffness_scale[i];
+        let d = &mut params.deformation;
+        d.contact.coefficient_m_per_n2_3 /= k;
+        d.bearing.coefficient_m_per_n_k /= k;
+        d.screw_axial.youngs_modulus_pa *= k;
+        d.rod.youngs_modulus_pa *= k;
+        d.torsion.shear_modulus_pa *= k;
+    }
+}
+
 /// The legs start at rest this far out of l_0 (Table 3's retracted length,
 /// = l_min): the rod sits behind the motor side by its deformation, and at
 /// exactly l_min that would already be outside the workspace.
 pub const START_STROKE_M: f64 = 0.005;
 
-fn new_leg(rig: &RigConfig, p: &Platform, i: usize, seed: u64, start: &Pose, force_n: f64, compensation: bool) -> Result<Box<LegLoop>> {
+struct LegSetup<'a> {
+    rig: &'a RigConfig,
+    spread: &'a RigSpread,
+    seed: u64,
+    compensation: bool,
+}
+
+fn new_leg(s: &LegSetup, p: &Platform, i: usize, start: &Pose, force_n: f64) -> Result<Box<LegLoop>> {
+    let (rig, seed, compensation) = (s.rig, s.seed, s.compensation);
     let mut params = rig.plant.clone();
     params.rod.payload_mass_kg = p.geometry.upper_leg_mass_kg;
+    s.spread.apply(i, &mut params);
     let mut plant = Plant::try_new(params, seed.wrapping_mul(7).wrapping_add(i as u64)).map_err(|e| anyhow!("leg {}: {e}", i + 1))?;
     let legs = p.inverse(start);
     plant.set_external_force_n(force_n);
@@ -148,14 +188,17 @@ impl Worker {
 
 /// From rest at l_0 (every leg retracted, Table 3's initial length), moves
 /// the legs to each set of `targets_m` in turn and measures the pose at rest.
-pub fn run_moves(p: &Platform, rig: &RigConfig, targets_m: &[[f64; 6]], compensation: bool, seed: u64) -> Result<SixLegRun> {
+pub fn run_moves(p: &Platform, rig: &RigConfig, spread: &RigSpread, targets_m: &[[f64; 6]], compensation: bool, seed: u64) -> Result<SixLegRun> {
     let l0 = p.geometry.leg_initial_length_m;
     let lmin = p.geometry.leg_min_length_m;
     let start = p.forward(&[l0 + START_STROKE_M; 6], &p.home()).map_err(|e| anyhow!("start pose: {e}"))?.pose;
     let at_rest = |pose: Pose| PoseState { pose, velocity: Vector6::zeros(), acceleration: Vector6::zeros() };
     let f0 = p.leg_forces(&at_rest(start)).map_err(|e| anyhow!("start pose: {e}"))?.forces_n;
     let worker = Worker::spawn();
-    let mut legs: Vec<Box<LegLoop>> = (0..6).map(|i| new_leg(rig, p, i, seed, &start, f0[i], compensation)).collect::<Result<_>>()?;
+    let mut legs: Vec<Box<LegLoop>> = {
+        let setup = LegSetup { rig, spread, seed, compensation };
+        (0..6).map(|i| new_leg(&setup, p, i, &start, f0[i])).collect::<Result<_>>()?
+    };
     let divider = u64::from(rig.control.rates.position_loop_divider);
     let dt = divider as f64 / f64::from(rig.control.rates.pwm_frequency_hz);
     let mut pose = start;
@@ -233,6 +276,7 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, targets_m: &[[f64; 6]], compensa
     let norm3 = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     Ok(SixLegRun {
         compensation,
+        rig_spread: *spread,
         pose_error_position_max_mm: moves.iter().map(|m| norm3(&m.pose_error_position_mm)).fold(0.0, f64::max),
         pose_error_attitude_max_deg: moves.iter().map(|m| norm3(&m.pose_error_attitude_deg)).fold(0.0, f64::max),
         moves,
