@@ -144,8 +144,8 @@ impl Deflection {
 pub struct AxialWarmStart {
     pub deflection_m: f64,
     pub force_n: f64,
-    /// dδ/dF there (0: unknown, start from `force_n` alone).
-    pub compliance_m_per_n: f64,
+    /// dF/dδ there (0: unknown, start from `force_n` alone).
+    pub stiffness_n_per_m: f64,
     /// The contact's and bearing's cube roots there (0: unknown).
     pub roots: [f64; 2],
 }
@@ -162,6 +162,8 @@ impl AxialWarmStart {
 pub struct Compliance {
     contact: PreloadedPowerLaw,
     bearing: PreloadedPowerLaw,
+    /// dδ/dF of contact + bearing at F = 0 (their largest), for the bracket.
+    nonlinear_slope_at_zero: f64,
     /// `1/(E_s A_s)`, per metre of loaded screw.
     screw_per_m: f64,
     /// Rod segments, constant.
@@ -180,9 +182,12 @@ pub struct Compliance {
 impl Compliance {
     pub fn new(p: &PlantParams) -> Self {
         let d = &p.deformation;
+        let contact = PreloadedPowerLaw::new(d.contact.coefficient_m_per_n2_3, d.contact.preload_n, 2.0 / 3.0);
+        let bearing = PreloadedPowerLaw::new(d.bearing.coefficient_m_per_n_k, d.bearing.preload_n, d.bearing.exponent);
         Self {
-            contact: PreloadedPowerLaw::new(d.contact.coefficient_m_per_n2_3, d.contact.preload_n, 2.0 / 3.0),
-            bearing: PreloadedPowerLaw::new(d.bearing.coefficient_m_per_n_k, d.bearing.preload_n, d.bearing.exponent),
+            nonlinear_slope_at_zero: contact.slope_at_zero() + bearing.slope_at_zero(),
+            contact,
+            bearing,
             screw_per_m: 1.0 / (d.screw_axial.youngs_modulus_pa * d.screw_axial.area_m2),
             rod: d.rod.segment1_length_m / (d.rod.youngs_modulus_pa * d.rod.segment1_area_m2)
                 + d.rod.segment2_length_m / (d.rod.youngs_modulus_pa * d.rod.segment2_area_m2),
@@ -232,34 +237,44 @@ impl Compliance {
     /// same answer to ~1e-14 relative.
     #[inline]
     pub fn axial_force_warm(&self, deflection_m: f64, x_m: f64, warm: &mut AxialWarmStart) -> f64 {
-        let guess = if warm.compliance_m_per_n > 0.0 {
-            warm.force_n + (deflection_m - warm.deflection_m) / warm.compliance_m_per_n
-        } else {
-            warm.force_n
-        };
+        let guess = warm.force_n + (deflection_m - warm.deflection_m) * warm.stiffness_n_per_m;
         let mut roots = warm.roots;
-        let (f, c) = self.axial_force_and_compliance(deflection_m, x_m, guess, &mut roots);
-        *warm = AxialWarmStart { deflection_m, force_n: f, compliance_m_per_n: c, roots };
+        let (f, k) = self.axial_force_and_compliance(deflection_m, x_m, guess, &mut roots);
+        *warm = AxialWarmStart { deflection_m, force_n: f, stiffness_n_per_m: k, roots };
         f
     }
 
-    /// The inversion, with dδ/dF at the last iterate (0 when δ = 0).
+    /// The inversion, with dF/dδ at the last iterate (0 when δ = 0).
+    ///
+    /// The bracket costs two divisions, so a warm start skips it while
+    /// Newton's steps stay small (under 1e-3·F, where an iterate is within
+    /// ~1e-6·F of the root and cannot leave the bracket the root lies in);
+    /// a cold start or a large step clamps as before.
     fn axial_force_and_compliance(&self, deflection_m: f64, x_m: f64, guess: f64, roots: &mut [f64; 2]) -> (f64, f64) {
         if deflection_m == 0.0 {
             return (0.0, 0.0);
         }
         let target = deflection_m.abs();
         let lin = self.linear_m_per_n(x_m);
-        let lo = target / (lin + self.contact.slope_at_zero() + self.bearing.slope_at_zero());
-        let hi = target / lin;
-        let mut f = if guess.is_finite() && guess * deflection_m > 0.0 { guess.abs().clamp(lo, hi) } else { lo };
-        let mut slope = 0.0;
+        let bracket = || (target / (lin + self.nonlinear_slope_at_zero), target / lin);
+        let mut clamp = None;
+        let mut f = if guess.is_finite() && guess * deflection_m > 0.0 {
+            guess.abs()
+        } else {
+            let b = *clamp.get_or_insert_with(bracket);
+            b.0
+        };
+        let mut stiffness = 0.0;
         for _ in 0..50 {
             let (d1, s1) = self.contact.deflection_and_slope_warm(f, &mut roots[0]);
             let (d4, s4) = self.bearing.deflection_and_slope_warm(f, &mut roots[1]);
             let g = d1 + d4 + lin * f - target;
-            slope = s1 + s4 + lin;
-            let next = (f - g / slope).clamp(lo, hi);
+            stiffness = 1.0 / (s1 + s4 + lin);
+            let mut next = f - g * stiffness;
+            if clamp.is_some() || !((next - f).abs() <= 1e-3 * f) {
+                let (lo, hi) = *clamp.get_or_insert_with(bracket);
+                next = next.clamp(lo, hi);
+            }
             // Newton's error after a step is ~ (step/F)² · F (the curvature
             // term is O(1/F)), so a step under 1e-7·F leaves < 1e-14·F.
             let done = (next - f).abs() <= 1e-7 * next.max(1e-3);
@@ -268,7 +283,7 @@ impl Compliance {
                 break;
             }
         }
-        (f.copysign(deflection_m), slope)
+        (f.copysign(deflection_m), stiffness)
     }
 
     /// Local axial stiffness dF/dδ at force `F`.
