@@ -98,6 +98,10 @@ pub struct Model {
     pub j_m: f64,
     pub j_s: f64,
     pub mass: f64,
+    /// 1/J_m, 1/J_s, 1/m: the right-hand side multiplies.
+    inv_j_m: f64,
+    inv_j_s: f64,
+    inv_mass: f64,
     pub payload_mass: f64,
     pub gravity: f64,
     pub b_m: f64,
@@ -123,6 +127,9 @@ impl Model {
             j_m: p.motor_side_inertia_kg_m2(),
             j_s: p.screw.inertia_kg_m2,
             mass: p.moving_mass_kg(),
+            inv_j_m: 1.0 / p.motor_side_inertia_kg_m2(),
+            inv_j_s: 1.0 / p.screw.inertia_kg_m2,
+            inv_mass: 1.0 / p.moving_mass_kg(),
             payload_mass: p.rod.payload_mass_kg,
             gravity: p.load.gravity_m_s2,
             b_m: p.motor.viscous_friction_n_m_s_rad,
@@ -215,11 +222,11 @@ impl Model {
             di_q,
             w_m,
             (motor_torque - coupling_torque - self.b_m * w_m - self.fx.cogging_n_m(th_m) + inp.brake.torque_n_m(th_m, w_m))
-                / self.j_m,
+                * self.inv_j_m,
             w_s,
-            (coupling_torque - ratio * axial_force - screw_friction_torque) / self.j_s,
+            (coupling_torque - ratio * axial_force - screw_friction_torque) * self.inv_j_s,
             v,
-            (axial_force - inp.load_force_n - rod_friction_force + stop_force) / self.mass,
+            (axial_force - inp.load_force_n - rod_friction_force + stop_force) * self.inv_mass,
         ];
         Eval {
             deriv,
