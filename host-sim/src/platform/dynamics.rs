@@ -75,7 +75,7 @@ impl Platform {
         let wrench = self.required_wrench(s);
         let jt = twist_jacobian(&legs).transpose();
         // Not singular: `inverse_checked` refused that.
-        let f = jt.lu().solve(&wrench).ok_or(KinematicsError::Singular { leg: 1, inverse_condition: 0.0, limit: 0.0 })?;
+        let f = jt.lu().solve(&wrench).ok_or(KinematicsError::SingularJacobian)?;
         Ok(LegForces { legs, forces_n: f.into(), wrench })
     }
 }

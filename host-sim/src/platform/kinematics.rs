@@ -85,6 +85,8 @@ pub enum KinematicsError {
     /// The Jacobian is (near-)singular; `leg` (1-based) moves most along
     /// the uncontrollable direction.
     Singular { leg: usize, inverse_condition: f64, limit: f64 },
+    /// The Jacobian could not be inverted at all (exactly singular).
+    SingularJacobian,
     /// Newton–Raphson did not reach `FK_TOLERANCE_M`.
     NoConvergence { iterations: usize, residual_m: f64 },
     /// Two distinct poses near the guess give the same lengths.
@@ -102,6 +104,7 @@ impl fmt::Display for KinematicsError {
                 f,
                 "singular configuration: inverse condition number {inverse_condition:.3e} of the Jacobian is below the limit {limit:.0e}; leg {leg} lies most along the lost direction"
             ),
+            Self::SingularJacobian => write!(f, "singular configuration: the Jacobian cannot be inverted"),
             Self::NoConvergence { iterations, residual_m } => write!(
                 f,
                 "forward kinematics did not converge in {iterations} iterations: leg-length residual {residual_m:.3e} m > {FK_TOLERANCE_M:.0e} m; no pose returned"

@@ -59,7 +59,7 @@ impl Platform {
             .pose_jacobian(&nominal)
             .lu()
             .solve(&Vector6::from(*errors_m))
-            .ok_or(KinematicsError::Singular { leg: 1, inverse_condition: 0.0, limit: 0.0 })?;
+            .ok_or(KinematicsError::SingularJacobian)?;
         Ok(PoseErrorEstimate { nominal, exact: PoseError::from_vector(&exact), linear: PoseError::from_vector(&linear) })
     }
 }

@@ -125,7 +125,7 @@ pub fn reproduce(p: &Platform, set: &LegSet, claims: &PaperClaims) -> Result<Set
     let lu = j.lu();
     let linear = |row: &[f64; 6]| {
         let dl = Vector6::from(m(row)) - Vector6::from(m(&set.given_mm));
-        lu.solve(&dl).map(|d| PoseError::from_vector(&d)).ok_or(KinematicsError::Singular { leg: 1, inverse_condition: 0.0, limit: 0.0 })
+        lu.solve(&dl).map(|d| PoseError::from_vector(&d)).ok_or(KinematicsError::SingularJacobian)
     };
     let (lb, la) = (linear(&set.before_mm)?, linear(&set.after_mm)?);
     let gap = |l: &PoseError, e: &PoseError| l.to_vector() - e.to_vector();
