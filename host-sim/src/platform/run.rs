@@ -156,6 +156,11 @@ pub fn run(geometry: Geometry, rig: Option<&crate::config::RigConfig>, out: &Pat
     };
     let (none, ten) = (super::six_legs::RigSpread::NONE, super::six_legs::RigSpread::TEN_PERCENT);
     let (six_off, six_on, spread_off, spread_on) = (six(&none, false)?, six(&none, true)?, six(&ten, false)?, six(&ten, true)?);
+    for (tag, r) in [("uncompensated", &six_off), ("compensated", &six_on), ("spread_uncompensated", &spread_off), ("spread_compensated", &spread_on)] {
+        if let Some(r) = r {
+            plots::six_leg_plots(tag, &r.trace, out)?;
+        }
+    }
     let neutral = p.leg_forces(&super::PoseState {
         pose: p.neutral(),
         velocity: nalgebra::Vector6::zeros(),

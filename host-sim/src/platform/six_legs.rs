@@ -56,6 +56,16 @@ pub struct MoveResult {
     pub drive_train_load_n: [f64; 6],
 }
 
+/// Time histories of a run, one sample per position-loop period.
+#[derive(Clone, Debug, Default)]
+pub struct SixLegTrace {
+    pub time_s: Vec<f64>,
+    /// Rod minus position reference, per leg, µm.
+    pub terminal_error_um: Vec<[f64; 6]>,
+    /// FK(rods) − FK(references): x, y, z mm; roll, pitch, yaw degrees.
+    pub pose_error: Vec<[f64; 6]>,
+}
+
 /// A whole run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SixLegRun {
@@ -65,6 +75,12 @@ pub struct SixLegRun {
     pub simulated_s: f64,
     pub wall_s: f64,
     pub sim_realtime_factor: f64,
+    /// Largest |FK(rods) − FK(references)| over the whole run, moving or not.
+    pub dynamic_pose_error_position_max_mm: f64,
+    pub dynamic_pose_error_attitude_max_deg: f64,
+    /// Per position-loop period (not in summary.json; plotted).
+    #[serde(skip)]
+    pub trace: SixLegTrace,
     /// Largest |pose error| at rest over the moves.
     pub pose_error_position_max_mm: f64,
     pub pose_error_attitude_max_deg: f64,
@@ -214,7 +230,9 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, spread: &RigSpread, targets_m: &
     // back explicitly, one period late, onto 17 kg rods is the classic
     // added-mass instability of explicit co-simulation. The rods follow
     // their references to micrometres, so the loads differ by as little.
-    let couple = |legs: &mut Vec<Box<LegLoop>>, hist: &mut [Vector6<f64>; 3], pose: &mut Pose| -> Result<[f64; 6]> {
+    let mut trace = SixLegTrace::default();
+    let mut rod_pose = start;
+    let mut couple = |legs: &mut Vec<Box<LegLoop>>, hist: &mut [Vector6<f64>; 3], pose: &mut Pose| -> Result<[f64; 6]> {
         worker.step(legs, divider)?;
         let lengths: [f64; 6] = std::array::from_fn(|i| lmin + f64::from(legs[i].cl.controller.telemetry().position_reference_m));
         *pose = p.newton(&lengths, pose).map_err(|e| anyhow!("t = {:.4} s: {e}", legs[0].cl.time_s()))?.pose;
@@ -230,6 +248,12 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, spread: &RigSpread, targets_m: &
             leg.cl.plant.set_external_force_n(f.forces_n[i]);
             leg.cl.plant.set_tilt_rad(f.legs.units[i].z.asin());
         }
+        let rods: [f64; 6] = std::array::from_fn(|i| lmin + legs[i].x_rod());
+        rod_pose = p.newton(&rods, &rod_pose).map_err(|e| anyhow!("rods at t = {:.4} s: {e}", legs[0].cl.time_s()))?.pose;
+        let d = rod_pose.to_vector() - pose.to_vector();
+        trace.time_s.push(legs[0].cl.time_s());
+        trace.terminal_error_um.push(std::array::from_fn(|i| (rods[i] - lengths[i]) * 1e6));
+        trace.pose_error.push([d[0] * 1e3, d[1] * 1e3, d[2] * 1e3, d[3].to_degrees(), d[4].to_degrees(), d[5].to_degrees()]);
         Ok(f.forces_n)
     };
     for _ in 0..(settle_s / dt).round() as usize {
@@ -283,5 +307,8 @@ pub fn run_moves(p: &Platform, rig: &RigConfig, spread: &RigSpread, targets_m: &
         simulated_s,
         wall_s,
         sim_realtime_factor: simulated_s / wall_s,
+        dynamic_pose_error_position_max_mm: trace.pose_error.iter().map(|e| norm3(&[e[0], e[1], e[2]])).fold(0.0, f64::max),
+        dynamic_pose_error_attitude_max_deg: trace.pose_error.iter().map(|e| norm3(&[e[3], e[4], e[5]])).fold(0.0, f64::max),
+        trace,
     })
 }
