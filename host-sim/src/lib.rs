@@ -10,6 +10,7 @@ pub mod parallel;
 pub mod diagnose;
 pub mod fault_injection;
 pub mod plant;
+pub mod platform;
 pub mod power_up;
 pub mod report;
 pub mod scenario;

@@ -74,6 +74,19 @@ enum Cmd {
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
+    /// The 6-DOF platform (issue 12): kinematics along pose trajectories,
+    /// leg forces, the Table 4 reproduction. Writes summary.json,
+    /// table4.md, geometry.png and per-trajectory plots.
+    Platform {
+        #[arg(long)]
+        out: PathBuf,
+        /// Platform geometry (TOML); default: Table 3 (params/platform.toml).
+        #[arg(long)]
+        geometry: Option<PathBuf>,
+        /// Rig file for the six closed-loop legs; default: the shipped rig.
+        #[arg(long)]
+        params: Option<PathBuf>,
+    },
     Dataset {
         #[arg(long)]
         out: PathBuf,
@@ -105,6 +118,18 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
+        Cmd::Platform { out, geometry, params } => {
+            let g = match geometry {
+                Some(path) => host_sim::platform::Geometry::load(&path)?,
+                None => host_sim::platform::Geometry::paper(),
+            };
+            let rig = RigConfig::load_or_nominal(params.as_ref())?;
+            let summary = host_sim::platform::run::run(g, Some(&rig), &out)?;
+            report::write_summary(&summary, &out)?;
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+            println!("wrote {}/{{summary.json, table4.md, geometry.png, *_pose_*.png, *_leg_*.png}}", out.display());
+            Ok(())
+        }
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
         }

@@ -32,7 +32,9 @@ fn bridge_off_with_the_brake_holds_the_rated_load_after_the_engage_delay() {
     // Until the disc closes the rod falls as without a brake; the diodes do
     // not conduct at these speeds, so the rotor and the payload accelerate
     // under the back-driven load: a = F·η'/(m + J/r²)-ish, bounded above by g.
-    run(&mut plant, &PwmCommand::OFF, engage * 0.999);
+    // (0.99: `run` rounds to whole PWM periods, and 0.999 × 25 ms rounds
+    // to 500 periods, the engage time itself.)
+    run(&mut plant, &PwmCommand::OFF, engage * 0.99);
     assert!(!plant.state().brake_engaged, "engaged before its time");
     run(&mut plant, &PwmCommand::OFF, 0.002);
     assert!(plant.state().brake_engaged, "not engaged after {engage} s");

@@ -49,7 +49,7 @@ fn rk4_global_error_falls_sixteen_fold_per_halving() {
 #[test]
 fn a_long_interval_is_split_into_steps_no_longer_than_the_limit() {
     // One advance of 10 periods must equal 10 advances of one period: the
-    // plant splits it into the same 12.5 µs steps.
+    // plant splits it into the same 25 µs steps.
     let mut a = Plant::new(PlantParams::default(), 1);
     let mut b = Plant::new(PlantParams::default(), 1);
     let d = aligned_duties(&a, 0.0, 3.0, PWM_PERIOD_S);

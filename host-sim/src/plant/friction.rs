@@ -9,6 +9,14 @@
 
 use super::params::PlantParams;
 
+/// `tanh`, without the libm call where it is ±1.0 exactly in f64 (|x| > 19.1;
+/// 20 to be sure): in motion the regularisation's argument is in the
+/// thousands.
+#[inline]
+fn saturating_tanh(x: f64) -> f64 {
+    if x.abs() > 20.0 { 1f64.copysign(x) } else { x.tanh() }
+}
+
 /// Nut, rod-seal and guide friction on the translating mass.
 #[derive(Clone, Copy, Debug)]
 pub struct RodFriction {
@@ -36,8 +44,11 @@ impl RodFriction {
     #[inline]
     pub fn force_n(&self, v_m_s: f64) -> f64 {
         let s = v_m_s * self.inv_stribeck_velocity;
-        let magnitude = self.coulomb + self.stribeck_excess * (-s * s).exp();
-        self.viscous * v_m_s + magnitude * (v_m_s * self.inv_regularisation).tanh()
+        // exp(−s²) is exactly 0.0 past s² ≈ 745; skipping the call there
+        // gives the same number without libm's slow underflow path.
+        let fade = if s * s < 746.0 { (-s * s).exp() } else { 0.0 };
+        let magnitude = self.coulomb + self.stribeck_excess * fade;
+        self.viscous * v_m_s + magnitude * saturating_tanh(v_m_s * self.inv_regularisation)
     }
 }
 
@@ -85,7 +96,7 @@ impl ScrewFriction {
     #[inline]
     pub fn torque_n_m(&self, omega_s: f64, axial_force_n: f64) -> f64 {
         let coulomb = self.preload_drag + self.load_coefficient * axial_force_n.abs();
-        self.viscous * omega_s + coulomb * (omega_s * self.inv_regularisation).tanh()
+        self.viscous * omega_s + coulomb * saturating_tanh(omega_s * self.inv_regularisation)
     }
 
     /// The Coulomb part alone (no viscous term).

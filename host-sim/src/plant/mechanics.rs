@@ -15,10 +15,10 @@
 //! The screw inertia is lumped at the nut end of the torsional path, so the
 //! whole rotor-to-nut twist (coupling + δθ5) is one spring.
 
-use super::deformation::Compliance;
+use super::deformation::{AxialWarmStart, Compliance};
 use super::effects::EffectDynamics;
 use super::friction::{RodFriction, ScrewFriction};
-use super::frames;
+use super::frames::{self, SinCosCache};
 use super::inverter::{self, Drive};
 use super::motor::Motor;
 use super::params::PlantParams;
@@ -35,6 +35,14 @@ pub const THETA_S: usize = 4;
 pub const OMEGA_S: usize = 5;
 pub const X_ROD: usize = 6;
 pub const V_ROD: usize = 7;
+
+/// What one right-hand-side evaluation leaves for the next (no effect on
+/// the answer beyond rounding; see `Model::evaluate_warm`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WarmStart {
+    pub axial: AxialWarmStart,
+    pub angle: SinCosCache,
+}
 
 /// What is held constant through one RK4 step.
 #[derive(Clone, Copy, Debug)]
@@ -90,6 +98,10 @@ pub struct Model {
     pub j_m: f64,
     pub j_s: f64,
     pub mass: f64,
+    /// 1/J_m, 1/J_s, 1/m: the right-hand side multiplies.
+    inv_j_m: f64,
+    inv_j_s: f64,
+    inv_mass: f64,
     pub payload_mass: f64,
     pub gravity: f64,
     pub b_m: f64,
@@ -115,6 +127,9 @@ impl Model {
             j_m: p.motor_side_inertia_kg_m2(),
             j_s: p.screw.inertia_kg_m2,
             mass: p.moving_mass_kg(),
+            inv_j_m: 1.0 / p.motor_side_inertia_kg_m2(),
+            inv_j_s: 1.0 / p.screw.inertia_kg_m2,
+            inv_mass: 1.0 / p.moving_mass_kg(),
             payload_mass: p.rod.payload_mass_kg,
             gravity: p.load.gravity_m_s2,
             b_m: p.motor.viscous_friction_n_m_s_rad,
@@ -149,9 +164,20 @@ impl Model {
     /// and is updated with its answer.
     #[inline]
     pub fn evaluate(&self, s: &StateVec, inp: &Inputs, force_guess: &mut f64) -> Eval {
+        let mut warm = WarmStart { axial: AxialWarmStart::from_force(*force_guess), ..WarmStart::default() };
+        let e = self.evaluate_warm(s, inp, &mut warm);
+        *force_guess = warm.axial.force_n;
+        e
+    }
+
+    /// `evaluate`, carrying from one call to the next what makes the next
+    /// cheaper: the axial-force inversion's tangent (see
+    /// `Compliance::axial_force_warm`) and the electrical angle's sin/cos.
+    #[inline]
+    pub fn evaluate_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut WarmStart) -> Eval {
         let (i_d, i_q, th_m, w_m, th_s, w_s, x, v) =
             (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
-        let (sin_e, cos_e) = (self.motor.pole_pairs * th_m).sin_cos();
+        let (sin_e, cos_e) = warm.angle.sin_cos(self.motor.pole_pairs * th_m);
         let (u_d, u_q) = match (inp.drive, inp.open_phase) {
             (Drive::Pwm(duty), None) => {
                 let u = inverter::pwm_phase_voltages(duty, inp.bus_v);
@@ -176,10 +202,12 @@ impl Model {
         // `ratio` = dx_s/dθ_s: L/2π, unless a lead error bends the thread.
         let (screw_position, ratio) = self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
         let axial_spring_force = match self.fx.engaged_deflection(screw_position - x) {
-            Some(d) => self.compliance.axial_force_n(d, x, *force_guess),
-            None => 0.0,
+            Some(d) => self.compliance.axial_force_warm(d, x, &mut warm.axial),
+            None => {
+                warm.axial = AxialWarmStart::default();
+                0.0
+            }
         };
-        *force_guess = axial_spring_force;
         let mut axial_force = axial_spring_force + self.c_ax * (ratio * w_s - v);
         if self.fx.has_gap() {
             axial_force = self.fx.contact_force(axial_spring_force, axial_force);
@@ -194,11 +222,11 @@ impl Model {
             di_q,
             w_m,
             (motor_torque - coupling_torque - self.b_m * w_m - self.fx.cogging_n_m(th_m) + inp.brake.torque_n_m(th_m, w_m))
-                / self.j_m,
+                * self.inv_j_m,
             w_s,
-            (coupling_torque - ratio * axial_force - screw_friction_torque) / self.j_s,
+            (coupling_torque - ratio * axial_force - screw_friction_torque) * self.inv_j_s,
             v,
-            (axial_force - inp.load_force_n - rod_friction_force + stop_force) / self.mass,
+            (axial_force - inp.load_force_n - rod_friction_force + stop_force) * self.inv_mass,
         ];
         Eval {
             deriv,

@@ -99,7 +99,7 @@ pub struct Plant {
     external_force_n: f64,
     bus_v: f64,
     drive: Drive,
-    force_guess: f64,
+    warm: mechanics::WarmStart,
     max_step_s: f64,
     duty_saturation_count: u64,
     /// A phase disconnected from the inverter (fault injection).
@@ -139,7 +139,7 @@ impl Plant {
             x: [0.0; mechanics::N],
             time_s: 0.0,
             drive: Drive::Pwm([0.5; 3]),
-            force_guess: 0.0,
+            warm: mechanics::WarmStart::default(),
             duty_saturation_count: 0,
             open_phase: None,
             brake: brake::Brake::new(&params.brake),
@@ -162,7 +162,7 @@ impl Plant {
         self.tilt_rad = tilt_rad;
         let load = self.model.load_force_n(tilt_rad, self.external_force_n);
         self.x = self.model.equilibrium(motor_angle_rad, load);
-        self.force_guess = load;
+        self.warm = mechanics::WarmStart { axial: deformation::AxialWarmStart::from_force(load), ..Default::default() };
         let (sin_e, cos_e) = (self.model.motor.pole_pairs * motor_angle_rad).sin_cos();
         let (u_a, u_b) = frames::inverse_park(0.0, self.model.motor.resistance_ohm * self.x[I_Q], sin_e, cos_e);
         let u = frames::inverse_clarke(u_a, u_b);
@@ -269,8 +269,8 @@ impl Plant {
                     brake: self.brake.torque_law(),
                 };
                 let model = &self.model;
-                let guess = &mut self.force_guess;
-                self.x = integrator::rk4_step(&self.x, h, |s| model.evaluate(s, &inputs, guess).deriv);
+                let guess = &mut self.warm;
+                self.x = integrator::rk4_step(&self.x, h, |s| model.evaluate_warm(s, &inputs, guess).deriv);
                 match (self.drive, self.open_phase) {
                     // The open phase is `Leg::Open` in the diode pattern.
                     (Drive::Diodes(legs), _) => self.enforce_diode_blocking(legs),
@@ -375,8 +375,8 @@ impl Plant {
     /// Stored energy and power flows at this instant, under the last drive.
     pub fn energy_audit(&self) -> EnergyAudit {
         let inputs = self.inputs();
-        let mut guess = self.force_guess;
-        let e = self.model.evaluate(&self.x, &inputs, &mut guess);
+        let mut guess = self.warm;
+        let e = self.model.evaluate_warm(&self.x, &inputs, &mut guess);
         self.model.energy_audit(&self.x, &e, inputs.load_force_n)
     }
 
@@ -426,8 +426,8 @@ impl Plant {
 
     fn refresh_state(&mut self) {
         let inputs = self.inputs();
-        let mut guess = self.force_guess;
-        let e = self.model.evaluate(&self.x, &inputs, &mut guess);
+        let mut guess = self.warm;
+        let e = self.model.evaluate_warm(&self.x, &inputs, &mut guess);
         let m = &self.model;
         let x = &self.x;
         let motor_side = m.motor_side_position_m(x[THETA_M]);
