@@ -111,7 +111,7 @@ fn encoder(e: &mut EncoderTracker, p: &ControlParams, raw: u16) -> bool {
 
 #[inline(never)]
 fn speed_loop(sl: &mut SpeedLoop, p: &ControlParams, w_ref: f32, w: f32) -> f32 {
-    sl.step(p, w_ref, 100.0, 0.1, w, -30.0, 30.0).current_q_reference_a
+    sl.step(p, w_ref, 100.0, 0.1, w, (-30.0, 30.0)).current_q_reference_a
 }
 
 #[inline(never)]

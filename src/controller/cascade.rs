@@ -74,8 +74,7 @@ impl Controller {
             self.acceleration_reference_rad_s2,
             self.friction_ff_n_m,
             self.speed_rad_s(),
-            lo,
-            hi,
+            (lo, hi),
         );
         self.current_reference.q = out.current_q_reference_a;
         if out.current_limited {

@@ -23,7 +23,7 @@ impl Controller {
     pub(super) fn brake_opening(&self) -> bool {
         self.params.brake.fitted
             && matches!(self.mode, Mode::Running | Mode::Homing | Mode::Preloading)
-            && self.brake_periods < self.derived.brake_preload_periods + self.derived.brake_release_periods
+            && self.brake_periods < self.derived.brake_preload_periods.saturating_add(self.derived.brake_release_periods)
     }
 
     /// Brake bookkeeping at the position rate while driving: the preload

@@ -34,9 +34,9 @@ impl CurrentCalibration {
 
     /// One sample with the bridge off.
     pub fn add(&mut self, p: &CalibrationParams, current_a: [f32; 3], bus_v: f32) -> CalibrationResult {
-        for (k, i) in current_a.iter().enumerate() {
-            self.sum_a[k] += i;
-            self.sum_sq_a2[k] += i * i;
+        for ((sum, sum_sq), i) in self.sum_a.iter_mut().zip(self.sum_sq_a2.iter_mut()).zip(current_a) {
+            *sum += i;
+            *sum_sq += i * i;
         }
         self.bus_min_v = crate::math::min(self.bus_min_v, bus_v);
         self.bus_max_v = crate::math::max(self.bus_max_v, bus_v);
@@ -46,15 +46,15 @@ impl CurrentCalibration {
         }
         let n = self.samples as f32;
         let mut offset_a = [0.0; 3];
-        for k in 0..3 {
-            let mean = self.sum_a[k] / n;
-            let var = crate::math::max(self.sum_sq_a2[k] / n - mean * mean, 0.0);
+        for ((offset, sum), sum_sq) in offset_a.iter_mut().zip(self.sum_a).zip(self.sum_sq_a2) {
+            let mean = sum / n;
+            let var = crate::math::max(sum_sq / n - mean * mean, 0.0);
             // NaN fails both tests, so a broken channel never passes.
             let ok = mean.abs() <= p.offset_max_a && crate::math::sqrt(var) <= p.noise_max_a;
             if !ok {
                 return CalibrationResult::Failed;
             }
-            offset_a[k] = mean;
+            *offset = mean;
         }
         if !(self.bus_max_v - self.bus_min_v <= p.bus_ripple_max_v) {
             return CalibrationResult::Failed;

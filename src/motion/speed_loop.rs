@@ -47,8 +47,7 @@ impl SpeedLoop {
         acceleration_reference_rad_s2: f32,
         friction_ff_n_m: f32,
         speed_measured_rad_s: f32,
-        current_min_a: f32,
-        current_max_a: f32,
+        (current_min_a, current_max_a): (f32, f32),
     ) -> SpeedLoopOutput {
         let torque_ff = p.reflected_inertia_kg_m2() * acceleration_reference_rad_s2
             + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s
