@@ -142,10 +142,18 @@ fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
     let count = |c: &str| out.iter().filter(|o| o.category == c).count();
     let force: Vec<&Outcome> = out.iter().filter(|o| o.case.starts_with("force_")).collect();
     let force_ok = force.iter().filter(|o| o.disturbance_weighted_pct >= 70.0).count();
-    let unexpl: Vec<&Outcome> = out.iter().filter(|o| o.character_ok.is_some()).collect();
+    // The nominal and mismatched cases have no true character to name.
+    let unexpl: Vec<&Outcome> =
+        out.iter().filter(|o| o.character_ok.is_some() && matches!(o.family, "novel" | "held_out_library")).collect();
     let char_ok = unexpl.iter().filter(|o| o.character_ok == Some(true)).count();
-    let ev: Vec<(f64, f64)> =
-        out.iter().filter_map(|o| Some((o.event_share_reported_pct?, o.event_share_truth_pct?))).collect();
+    // Event-locked gaps: short force pulses (the energy sits after them).
+    // Steps and the miscount leave a lasting offset, not an event-locked
+    // gap; their shares are listed in the outcomes for reference.
+    let ev: Vec<(f64, f64)> = out
+        .iter()
+        .filter(|o| o.case.starts_with("force_pulses"))
+        .filter_map(|o| Some((o.event_share_reported_pct?, o.event_share_truth_pct?)))
+        .collect();
     let ev_ok = ev.iter().filter(|(a, b)| (a - b).abs() <= 10.0).count();
     let mism: Vec<&Outcome> = out.iter().filter(|o| o.family == "mismatched").collect();
     let mism_gated = mism.iter().filter(|o| o.gates.iter().any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))).count();

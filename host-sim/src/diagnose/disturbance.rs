@@ -30,6 +30,11 @@ pub const THRESHOLDS: [f64; 6] = [4.0, 6.0, 8.0, 12.0, 16.0, 24.0];
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct DisturbanceFit {
     pub model: String,
+    /// What it is fitted on: `nominal` (the nominal residual) or `stack`
+    /// (after the library stack), whichever leaves less on training.
+    pub base: String,
+    /// Weighted training gap after it (chooses the base).
+    pub train_gap_after: f64,
     /// Change-point threshold chosen on training, robust sigmas.
     pub threshold_sigma: f64,
     /// Cross-validated weighted shrink of the training remainder with it, %.
@@ -187,6 +192,8 @@ pub fn fit(
     let dur: f64 = held.iter().map(|s| s.len() as f64 * s.dt).sum();
     let fitd = DisturbanceFit {
         model: "unmeasured force (input disturbance) piecewise constant between change points of the residual".into(),
+        base: String::new(),
+        train_gap_after: train_gap,
         threshold_sigma: k,
         train_cv_shrink_pct: shrink(base_t, train_gap),
         heldout_change_points: n_cp,

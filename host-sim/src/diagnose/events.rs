@@ -29,10 +29,17 @@ pub const EVENT_BEFORE_S: f64 = 0.02;
 /// of energy slower than `SLOW_S`; the input correlation; the Ljung–Box
 /// p-value below which the remainder is not white.
 pub const LOCKED_EXCESS_POINTS: f64 = 25.0;
-pub const PERIODIC_ACF: f64 = 0.4;
+pub const PERIODIC_ACF: f64 = 0.3;
+/// The speed's own autocorrelation at the remainder's period above which
+/// the period is the move cycle.
+pub const MOTION_CYCLE_ACF: f64 = 0.3;
 pub const SLOW_S: f64 = 1.0;
 pub const DRIFT_SLOW_SHARE_PCT: f64 = 60.0;
 pub const INPUT_CORR: f64 = 0.5;
+/// Share of the energy a linear combination of the inputs (`input_r2`)
+/// explains above which the remainder is input-correlated (the multiple
+/// correlation's square, as `INPUT_CORR`² for one input).
+pub const INPUT_R2_PCT: f64 = 25.0;
 pub const WHITE_P: f64 = 0.01;
 /// Piecewise-constant (disturbance) explanation of the remainder above
 /// which it is "steps" (event-locked) whatever the energy windows say.
@@ -74,8 +81,12 @@ pub struct TimeStructure {
     pub white: bool,
     /// Energy of the `SLOW_S` moving average (offset and drift), %.
     pub slow_share_pct: f64,
-    /// |ρ| of the remainder with speed, acceleration, load, current, position.
+    /// |ρ| of the remainder with speed, acceleration, load, current, position,
+    /// direction of motion and current × time (a drifting gain).
     pub input_correlation: Vec<(String, f64)>,
+    /// Share of the energy the inputs explain together (least squares on
+    /// 1, v, sgn v, |v|, a, F, i, x, i·t), %.
+    pub input_r2_pct: f64,
     /// Share of the remainder a piecewise-constant signal between change
     /// points explains (cross-validated), %.
     pub steps_explained_pct: f64,
@@ -353,6 +364,19 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
             }
         }
     }
+    // A period the motion itself repeats with (the speed's magnitude
+    // correlates at that lag) is the experiment's move cycle: locked to
+    // the motion, not a periodic disturbance.
+    let motion_cycle = period.is_some_and(|p| {
+        let l = (p / dt).round() as usize;
+        let speed: Remainder = segs
+            .iter()
+            .map(|s| std::array::from_fn(|k| (k == c).then(|| s.v_ref.iter().map(|v| v.abs()).collect())))
+            .collect();
+        // A cycle: the speed decorrelates (a move ends) and correlates again.
+        let r = acf(segs, &speed, c, l);
+        r.iter().any(|v| *v < 0.0) && r.get(l).is_some_and(|v| *v >= MOTION_CYCLE_ACF)
+    });
     // Ljung–Box on block means over the smoothing window (2m+1 samples), so
     // the Savitzky–Golay smoothing's own correlation does not count.
     let mut blocks = Vec::new();
@@ -381,13 +405,29 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
         }
     }
     let slow_share_pct = if tot > 0.0 { 100.0 * slow / tot } else { 0.0 };
-    let input_correlation: Vec<(String, f64)> = [("speed", 0usize), ("acceleration", 1), ("load", 2), ("current", 3), ("position", 4)]
+    let input_correlation: Vec<(String, f64)> = [("speed", 0usize), ("acceleration", 1), ("load", 2), ("current", 3), ("position", 4), ("direction of motion", 5), ("current × time (a drifting gain)", 6)]
         .iter()
         .map(|(name, k)| {
             let (mut sxy, mut sxx, mut syy, mut sx, mut sy, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
             for (s, r) in segs.iter().zip(rem) {
                 let Some(x) = &r[c] else { continue };
-                let u = [&s.v, &s.a, &s.f_load, &s.iq, &s.x][*k];
+                let sgn: Vec<f64>;
+                let u: &[f64] = match *k {
+                    5 => {
+                        sgn = s
+                            .v
+                            .iter()
+                            .enumerate()
+                            .map(|(i, v)| if v.abs() > 1e-4 { v.signum() } else { s.dir.get(i).copied().unwrap_or(0.0) })
+                            .collect();
+                        &sgn
+                    }
+                    6 => {
+                        sgn = s.iq.iter().zip(&s.t_rel).map(|(i, t)| i * t).collect();
+                        &sgn
+                    }
+                    _ => [&s.v, &s.a, &s.f_load, &s.iq, &s.x][*k],
+                };
                 for i in 0..s.len() {
                     let a = s.weight(c, i) * x[i];
                     sxy += a * u[i];
@@ -404,9 +444,10 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
         })
         .collect();
     let best_in = input_correlation.iter().cloned().fold((String::new(), 0.0), |m, v| if v.1 > m.1 { v } else { m });
+    let input_r2_pct = input_r2(segs, rem, c);
     let white = p > WHITE_P;
     let n_ev: usize = cps.iter().map(Vec::len).sum();
-    let (character, why) = if period.is_some() && acf_p >= PERIODIC_ACF {
+    let (character, why) = if period.is_some() && acf_p >= PERIODIC_ACF && !motion_cycle {
         ("periodic", format!("autocorrelation {acf_p:.2} at a period of {:.3} s", period.unwrap_or(0.0)))
     } else if n_ev > 0 && (e_ev - t_ev >= LOCKED_EXCESS_POINTS || steps_explained_pct >= STEPS_SHARE_PCT) {
         (
@@ -418,8 +459,14 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
         )
     } else if slow_share_pct >= DRIFT_SLOW_SHARE_PCT {
         ("drift", format!("{slow_share_pct:.0} % of the energy is slower than {SLOW_S} s (offset or drift)"))
-    } else if best_in.1 >= INPUT_CORR {
-        ("input-correlated", format!("|ρ| = {:.2} with the {}", best_in.1, best_in.0))
+    } else if best_in.1 >= INPUT_CORR || input_r2_pct >= INPUT_R2_PCT {
+        (
+            "input-correlated",
+            format!(
+                "|ρ| = {:.2} with the {}; the inputs together explain {input_r2_pct:.0} % of its energy",
+                best_in.1, best_in.0
+            ),
+        )
     } else if white {
         ("broadband (white)", format!("Ljung–Box p = {p:.3} over {h} lags of {:.0} ms blocks", 1e3 * dt * 21.0))
     } else {
@@ -448,8 +495,50 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
         white,
         slow_share_pct,
         input_correlation,
+        input_r2_pct,
         steps_explained_pct,
         character: character.into(),
         character_why: why,
+    }
+}
+
+/// Share of the weighted remainder's energy (about its mean) a least-squares
+/// combination of the inputs explains, %: every 4th sample.
+fn input_r2(segs: &[&Segment], rem: &Remainder, c: usize) -> f64 {
+    const P: usize = 9;
+    let mut ata = nalgebra::SMatrix::<f64, P, P>::zeros();
+    let mut atb = nalgebra::SVector::<f64, P>::zeros();
+    let (mut sy, mut syy, mut n) = (0.0, 0.0, 0.0);
+    let mut rows = Vec::new();
+    for (s, r) in segs.iter().zip(rem) {
+        let Some(x) = &r[c] else { continue };
+        for i in (0..s.len()).step_by(4) {
+            let w = s.weight(c, i);
+            let v = s.v[i];
+            let f = nalgebra::SVector::<f64, P>::from([1.0, v, v.signum(), v.abs(), s.a[i], s.f_load[i], s.iq[i], s.x[i], s.iq[i] * s.t_rel[i]]) * w;
+            let y = w * x[i];
+            ata += f * f.transpose();
+            atb += f * y;
+            sy += y;
+            syy += y * y;
+            n += 1.0;
+            rows.push((f, y));
+        }
+    }
+    if n < 20.0 {
+        return 0.0;
+    }
+    // Columns scaled to unit diagonal, then a pseudo-inverse (collinear
+    // inputs, e.g. the current and the load, are common).
+    let d = ata.diagonal().map(|v| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 });
+    let dm = nalgebra::SMatrix::<f64, P, P>::from_diagonal(&d);
+    let Ok(beta) = (dm * ata * dm).svd(true, true).solve(&(dm * atb), 1e-10) else { return 0.0 };
+    let beta = dm * beta;
+    let ss_res: f64 = rows.iter().map(|(f, y)| (y - f.dot(&beta)).powi(2)).sum();
+    let ss_tot = syy - sy * sy / n;
+    if ss_tot > 0.0 {
+        (100.0 * (1.0 - ss_res / ss_tot)).clamp(0.0, 100.0)
+    } else {
+        0.0
     }
 }

@@ -40,7 +40,8 @@ pub fn write(d: &Diagnosis, dir: &Path) -> Result<()> {
             let cps: &[usize] = if s.heldout { d.change_points.get(hk).map_or(&[], Vec::as_slice) } else { &[] };
             for i in 0..s.len() {
                 let a = r[i] - after.as_ref().map_or(0.0, |p| p[i]);
-                let ad = dist.as_ref().map_or(f64::NAN, |p| a - p[i]);
+                let base = if d.summary.disturbance.as_ref().is_some_and(|z| z.base == "nominal") { r[i] } else { a };
+                let ad = dist.as_ref().map_or(f64::NAN, |p| base - p[i]);
                 w.write_record(&[
                     if s.heldout { "heldout" } else { "train" }.to_string(),
                     s.run.to_string(),

@@ -143,6 +143,42 @@ impl Diagnosis {
     }
 }
 
+/// Samples `[a, b)` of a segment as a segment of its own.
+pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
+    let sl = |v: &Vec<f64>| v[a..b].to_vec();
+    Segment {
+        run: s.run,
+        heldout: held,
+        first_row: s.first_row + a,
+        t: sl(&s.t),
+        t_rel: sl(&s.t_rel),
+        theta: sl(&s.theta),
+        omega: sl(&s.omega),
+        alpha: sl(&s.alpha),
+        x: sl(&s.x),
+        v: sl(&s.v),
+        a: sl(&s.a),
+        v_ref: sl(&s.v_ref),
+        a_ref: sl(&s.a_ref),
+        f_load: sl(&s.f_load),
+        f_ax: sl(&s.f_ax),
+        iq: sl(&s.iq),
+        dir: sl(&s.dir),
+        since_reversal_s: sl(&s.since_reversal_s),
+        c_loc: sl(&s.c_loc),
+        input: sl(&s.input),
+        y: std::array::from_fn(|c| s.y[c].as_ref().map(sl)),
+        r: std::array::from_fn(|c| s.r[c].as_ref().map(sl)),
+        encoder: s.encoder,
+        rod_from_scale: s.rod_from_scale,
+        play: s.play.iter().map(sl).collect(),
+        flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
+        motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
+        sg_m: s.sg_m,
+        dt: s.dt,
+    }
+}
+
 /// Splits a single long segment into 60 % / 40 %.
 fn split_segments(mut segs: Vec<Segment>) -> Vec<Segment> {
     if segs.len() >= 2 {
@@ -153,40 +189,7 @@ fn split_segments(mut segs: Vec<Segment>) -> Vec<Segment> {
     }
     let Some(s) = segs.pop() else { return segs };
     let cut = s.len() * 3 / 5;
-    let take = |a: usize, b: usize, held: bool| {
-        let sl = |v: &Vec<f64>| v[a..b].to_vec();
-        Segment {
-            run: s.run,
-            heldout: held,
-            first_row: s.first_row + a,
-            t: sl(&s.t),
-            t_rel: sl(&s.t_rel),
-            theta: sl(&s.theta),
-            omega: sl(&s.omega),
-            alpha: sl(&s.alpha),
-            x: sl(&s.x),
-            v: sl(&s.v),
-            a: sl(&s.a),
-            v_ref: sl(&s.v_ref),
-            a_ref: sl(&s.a_ref),
-            f_load: sl(&s.f_load),
-            f_ax: sl(&s.f_ax),
-            iq: sl(&s.iq),
-            dir: sl(&s.dir),
-            since_reversal_s: sl(&s.since_reversal_s),
-            c_loc: sl(&s.c_loc),
-            input: sl(&s.input),
-            y: std::array::from_fn(|c| s.y[c].as_ref().map(sl)),
-            r: std::array::from_fn(|c| s.r[c].as_ref().map(sl)),
-            encoder: s.encoder,
-            rod_from_scale: s.rod_from_scale,
-            play: s.play.iter().map(sl).collect(),
-            flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
-            motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
-            sg_m: s.sg_m,
-            dt: s.dt,
-        }
-    };
+    let take = |a: usize, b: usize, held: bool| slice_segment(&s, a, b, held);
     vec![take(0, cut, false), take(cut, s.len(), true)]
 }
 
@@ -333,18 +336,34 @@ pub fn diagnose_with(
     };
     let rem_h = remainder(&held, &pred_h);
     let rem_t = remainder(&train, &stack_pred(&train));
-    let (dist, dist_pred, cps) =
-        disturbance::fit(&train, &rem_t, &held, &rem_h, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    // The disturbance on the stack's remainder or on the nominal residual
+    // (a stack fitted on training may carry a wrong constant into the
+    // held-out part), whichever leaves less on training.
+    let nominal_rem = |segs: &[&Segment]| -> events::Remainder {
+        segs.iter().map(|s| std::array::from_fn(|c| s.r[c].clone())).collect()
+    };
+    let (rem_hn, rem_tn) = (nominal_rem(&held), nominal_rem(&train));
+    let on_stack = disturbance::fit(&train, &rem_t, &held, &rem_h, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    let on_nominal =
+        disturbance::fit(&train, &rem_tn, &held, &rem_hn, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    let use_nominal = stack.is_some() && on_nominal.0.train_gap_after < on_stack.0.train_gap_after;
+    let (mut dist, dist_pred, cps) = if use_nominal { on_nominal } else { on_stack };
+    dist.base = if use_nominal { "nominal".into() } else { "stack".into() };
+    dist.over_stack_points = dist.primary_shrink_pct - stack_primary_shrink.max(0.0);
+    let rem_base = if use_nominal { &rem_hn } else { &rem_h };
+    let cps_fixed = events::detect(&held, &rem_h, events::STEP_SIGMA);
     let steps_pct = |c: usize| {
         let mut wc = [0.0; NCH];
         wc[c] = 1.0;
-        shrink(disturbance::gap(&held, &rem_h, None, &wc), disturbance::gap(&held, &rem_h, Some(&dist_pred), &wc))
+        shrink(disturbance::gap(&held, rem_base, None, &wc), disturbance::gap(&held, rem_base, Some(&dist_pred), &wc))
     };
     let avail: Vec<usize> = (0..NCH).filter(|c| fit_before_h[*c].is_some()).collect();
     let time_structure: Vec<events::TimeStructure> = avail
         .iter()
         .map(|&c| {
-            let cps_c = if c == residual::VOLTAGE { vec![Vec::new(); held.len()] } else { cps.clone() };
+            // Events at the fixed, conservative threshold (the disturbance's
+            // may be lower: more change points can help its levels).
+            let cps_c = if c == residual::VOLTAGE { vec![Vec::new(); held.len()] } else { cps_fixed.clone() };
             events::analyse(&held, &rem_h, c, &cps_c, if c == residual::VOLTAGE { 0.0 } else { steps_pct(c) })
         })
         .collect();
@@ -407,6 +426,7 @@ pub fn diagnose_with(
         stack_primary_shrink.max(0.0),
         Some(&dist),
         time_structure.iter().find(|t| t.channel == CHANNELS[primary]),
+        if blocked { None } else { rk.top_halves },
     );
     let summary = Summary {
         source: log.source.clone(),
@@ -439,6 +459,7 @@ pub fn diagnose_with(
         heldout_fit_after_stack: stack_fit,
         gap_shrink_stack_pct: stack_primary_shrink.max(0.0),
         gap_shrink_stack_weighted_pct: stack_weighted,
+        top_halves_primary_shrink_pct: rk.top_halves,
         figure_definitions: figures::definitions(CHANNELS[primary]),
         gates,
         time_structure,

@@ -22,7 +22,18 @@ pub struct Ranking {
     pub stack_params: Vec<f64>,
     /// Weighted held-out gap after the stack (the nominal's without one).
     pub stack_gap: f64,
+    /// The top effect refitted on the first and on the second half (in
+    /// time) of every training segment: its held-out primary-channel
+    /// shrink with each.
+    pub top_halves: Option<(f64, f64)>,
 }
+
+/// A cause must keep at least this share of its held-out shrink when
+/// fitted on either half of the training run alone: an effect whose
+/// parameters drift over the run (a torque constant falling as the
+/// magnets warm, fitted as a current-sensor gain) stands in for something
+/// time-varying and is not a constant-parameter library effect.
+pub const STABLE_SHARE: f64 = 0.7;
 
 /// Weighted held-out shrink of channel `c` alone.
 pub fn channel_shrink(held: &[&Segment], pred: Option<&[ChannelPred]>, c: usize) -> f64 {
@@ -195,5 +206,31 @@ pub fn rank(
             }
         }
     }
-    Ranking { ranked, not_ranked, primary, indist, top, stack_terms, stack_params, stack_gap }
+    let top_halves = top.as_ref().map(|(terms, _)| {
+        let halves: [Vec<Segment>; 2] = std::array::from_fn(|h| {
+            train
+                .iter()
+                .map(|s| {
+                    let mid = s.len() / 2;
+                    if h == 0 {
+                        super::slice_segment(s, 0, mid, false)
+                    } else {
+                        super::slice_segment(s, mid, s.len(), false)
+                    }
+                })
+                .collect()
+        });
+        let score = |segs: &Vec<Segment>| {
+            let refs: Vec<&Segment> = segs.iter().collect();
+            match fit::fit_terms(terms, &refs, nominal, w) {
+                Ok(p) => {
+                    let pred: Vec<_> = held.iter().map(|s| fit::predict(terms, &p, s, nominal)).collect();
+                    channel_shrink(held, Some(&pred), primary)
+                }
+                Err(_) => f64::NAN,
+            }
+        };
+        (score(&halves[0]), score(&halves[1]))
+    });
+    Ranking { ranked, not_ranked, primary, indist, top, stack_terms, stack_params, stack_gap, top_halves }
 }

@@ -68,7 +68,9 @@ impl Novel {
         match self {
             Novel::ForceSteps | Novel::ForcePulses | Novel::EncoderMiscount => &["event-locked"],
             Novel::SensorDelay | Novel::CurrentSaturation => &["event-locked", "input-correlated"],
-            Novel::StructuralResonance => &["periodic"],
+            // Ringing after every thrust change: periodic, and locked to
+            // the events that excite it.
+            Novel::StructuralResonance => &["periodic", "event-locked"],
             Novel::TorqueConstantDrop => &["drift", "input-correlated"],
         }
     }
@@ -80,6 +82,8 @@ pub fn library_characters(e: Effect) -> &'static [&'static str] {
         Effect::Cogging | Effect::LeadErrorPerRev | Effect::EncoderEccentricity => &["periodic"],
         Effect::ThermalDrift | Effect::LeadErrorCumulative => &["drift", "input-correlated"],
         Effect::Backlash => &["event-locked", "input-correlated", "drift"],
+        // Offsets ripple once per electrical revolution; a gain follows the current.
+        Effect::CurrentSensor => &["periodic", "input-correlated"],
         _ => &["input-correlated", "drift", "event-locked"],
     }
 }
