@@ -51,6 +51,8 @@ struct Outcome {
     event_share_reported_pct: Option<f64>,
     event_share_truth_pct: Option<f64>,
     gates: Vec<String>,
+    top_halves: Option<(f64, f64, f64)>,
+    disturbance_locked_to_signals: Option<bool>,
     wall_s: f64,
 }
 
@@ -121,6 +123,8 @@ fn run_case(spec: Spec) -> Outcome {
         event_share_reported_pct: rep,
         event_share_truth_pct: tru,
         gates: s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect(),
+        top_halves: s.top_halves_primary_shrink_pct,
+        disturbance_locked_to_signals: s.disturbance.as_ref().map(|x| x.locked_to_signals),
         wall_s: t0.elapsed().as_secs_f64(),
     }
 }

@@ -24,6 +24,14 @@ use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE};
 /// levels would only add noise.
 pub const CHANNEL_MIN_PCT: f64 = 10.0;
 
+/// Change points within this of a logged-signal event count as locked to
+/// it, s.
+pub const LOCK_TOL_S: f64 = 0.05;
+/// Change points locked to logged-signal events beyond chance by this many
+/// points: the "disturbance" follows the motion or the measured load, so it
+/// is a model error of the nominal, not an unmeasured external force.
+pub const LOCKED_EXCESS_POINTS: f64 = 30.0;
+
 /// Thresholds (robust sigmas) tried on the training part.
 pub const THRESHOLDS: [f64; 6] = [4.0, 6.0, 8.0, 12.0, 16.0, 24.0];
 
@@ -48,6 +56,12 @@ pub struct DisturbanceFit {
     pub level_unit: String,
     pub median_abs_level: f64,
     pub max_abs_level: f64,
+    /// Share of its change points within `LOCK_TOL_S` of a logged-signal
+    /// event (move start/stop, reference-acceleration or load change), %,
+    /// the share chance gives, %, and whether it is locked to them.
+    pub signal_locked_pct: f64,
+    pub chance_pct: f64,
+    pub locked_to_signals: bool,
     /// Channels it acts on (chosen on training).
     pub channels: Vec<String>,
     /// Held-out figures with stack + disturbance against the nominal
@@ -177,6 +191,7 @@ pub fn fit(
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .unwrap_or((events::STEP_SIGMA, [false; NCH], base_t));
     let (pred, cps, levels) = predict(held, rem_held, k, &use_ch);
+    let (lk, ch) = events::locked_share(held, &cps, &events::signal_events(held), LOCK_TOL_S);
     let g_stack = gap(held, rem_held, None, w);
     let g = gap(held, rem_held, Some(&pred), w);
     let wp = one(primary);
@@ -193,6 +208,9 @@ pub fn fit(
     let fitd = DisturbanceFit {
         model: "unmeasured force (input disturbance) piecewise constant between change points of the residual".into(),
         base: String::new(),
+        signal_locked_pct: lk,
+        chance_pct: ch,
+        locked_to_signals: lk - ch >= LOCKED_EXCESS_POINTS,
         train_gap_after: train_gap,
         threshold_sigma: k,
         train_cv_shrink_pct: shrink(base_t, train_gap),

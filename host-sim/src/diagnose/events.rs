@@ -44,6 +44,9 @@ pub const WHITE_P: f64 = 0.01;
 /// Piecewise-constant (disturbance) explanation of the remainder above
 /// which it is "steps" (event-locked) whatever the energy windows say.
 pub const STEPS_SHARE_PCT: f64 = 50.0;
+/// … provided the change points are steps, not a smoother: at least this
+/// long between them on average, s.
+pub const STEPS_MIN_INTERVAL_S: f64 = 0.5;
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EventOut {
@@ -181,6 +184,51 @@ pub fn detect(segs: &[&Segment], rem: &Remainder, k: f64) -> Vec<Vec<usize>> {
         .zip(&stats)
         .map(|(s, st)| change_points(st, &sig, ((STEP_WINDOW_S / s.dt).round() as usize).max(3), k))
         .collect()
+}
+
+/// Events in the logged signals: move starts and stops, and change points
+/// of the reference acceleration (the jerk-limited phases) and of the
+/// logged load.
+pub fn signal_events(segs: &[&Segment]) -> Vec<Vec<usize>> {
+    let mot = motion_events(segs);
+    segs.iter()
+        .zip(mot)
+        .map(|(s, mut ev)| {
+            let w = ((STEP_WINDOW_S / s.dt).round() as usize).max(3);
+            let ones = vec![1.0; s.len()];
+            for sig in [&s.a_ref, &s.f_load] {
+                let st = step_stat(sig, &ones, w);
+                let sd = robust_sigma(&st);
+                if sd > 0.0 {
+                    ev.extend(change_points(&[st], &[sd], w, STEP_SIGMA));
+                }
+            }
+            ev.sort_unstable();
+            ev.dedup();
+            ev
+        })
+        .collect()
+}
+
+/// Share of the change points within `tol_s` of a logged-signal event, %,
+/// and the share expected by chance (the time those windows cover), %.
+pub fn locked_share(segs: &[&Segment], cps: &[Vec<usize>], sig: &[Vec<usize>], tol_s: f64) -> (f64, f64) {
+    let (mut near, mut n, mut covered, mut total) = (0usize, 0usize, 0usize, 0usize);
+    for ((s, cp), ev) in segs.iter().zip(cps).zip(sig) {
+        let tol = (tol_s / s.dt).round() as usize;
+        let mut mask = vec![false; s.len()];
+        for &e in ev {
+            for m in mask.iter_mut().take((e + tol + 1).min(s.len())).skip(e.saturating_sub(tol)) {
+                *m = true;
+            }
+        }
+        covered += mask.iter().filter(|m| **m).count();
+        total += s.len();
+        near += cp.iter().filter(|i| mask[**i]).count();
+        n += cp.len();
+    }
+    let pct = |a: usize, b: usize| if b > 0 { 100.0 * a as f64 / b as f64 } else { 0.0 };
+    (pct(near, n), pct(covered, total))
 }
 
 /// Move starts and stops: the reference speed crossing 5 % of its peak.
@@ -446,10 +494,14 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
     let best_in = input_correlation.iter().cloned().fold((String::new(), 0.0), |m, v| if v.1 > m.1 { v } else { m });
     let input_r2_pct = input_r2(segs, rem, c);
     let white = p > WHITE_P;
+    let duration: f64 = segs.iter().map(|s| s.len() as f64 * s.dt).sum();
     let n_ev: usize = cps.iter().map(Vec::len).sum();
     let (character, why) = if period.is_some() && acf_p >= PERIODIC_ACF && !motion_cycle {
         ("periodic", format!("autocorrelation {acf_p:.2} at a period of {:.3} s", period.unwrap_or(0.0)))
-    } else if n_ev > 0 && (e_ev - t_ev >= LOCKED_EXCESS_POINTS || steps_explained_pct >= STEPS_SHARE_PCT) {
+    } else if n_ev > 0
+        && (e_ev - t_ev >= LOCKED_EXCESS_POINTS
+            || (steps_explained_pct >= STEPS_SHARE_PCT && duration / n_ev as f64 >= STEPS_MIN_INTERVAL_S))
+    {
         (
             "event-locked",
             format!(

@@ -24,8 +24,9 @@ pub struct Ranking {
     pub stack_gap: f64,
     /// The top effect refitted on the first and on the second half (in
     /// time) of every training segment: its held-out primary-channel
-    /// shrink with each.
-    pub top_halves: Option<(f64, f64)>,
+    /// shrink with each, and the change of its first parameter between
+    /// the halves relative to the full fit's.
+    pub top_halves: Option<(f64, f64, f64)>,
 }
 
 /// A cause must keep at least this share of its held-out shrink when
@@ -34,6 +35,9 @@ pub struct Ranking {
 /// magnets warm, fitted as a current-sensor gain) stands in for something
 /// time-varying and is not a constant-parameter library effect.
 pub const STABLE_SHARE: f64 = 0.7;
+/// … or whose leading parameter changes between the halves by more than
+/// this share of its full-run value.
+pub const STABLE_PARAM_CHANGE: f64 = 0.4;
 
 /// Weighted held-out shrink of channel `c` alone.
 pub fn channel_shrink(held: &[&Segment], pred: Option<&[ChannelPred]>, c: usize) -> f64 {
@@ -225,12 +229,14 @@ pub fn rank(
             match fit::fit_terms(terms, &refs, nominal, w) {
                 Ok(p) => {
                     let pred: Vec<_> = held.iter().map(|s| fit::predict(terms, &p, s, nominal)).collect();
-                    channel_shrink(held, Some(&pred), primary)
+                    (channel_shrink(held, Some(&pred), primary), p.first().copied().unwrap_or(f64::NAN))
                 }
-                Err(_) => f64::NAN,
+                Err(_) => (f64::NAN, f64::NAN),
             }
         };
-        (score(&halves[0]), score(&halves[1]))
+        let ((s0, p0), (s1, p1)) = (score(&halves[0]), score(&halves[1]));
+        let full = top.as_ref().and_then(|t| t.1.first().copied()).unwrap_or(f64::NAN);
+        (s0, s1, (p1 - p0).abs() / full.abs())
     });
     Ranking { ranked, not_ranked, primary, indist, top, stack_terms, stack_params, stack_gap, top_halves }
 }

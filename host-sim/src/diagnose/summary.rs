@@ -93,8 +93,9 @@ pub struct Summary {
     pub gap_shrink_stack_pct: f64,
     pub gap_shrink_stack_weighted_pct: f64,
     /// The top effect refitted on each half of the training run: its
-    /// held-out primary-channel shrink with each (a parameter drift check).
-    pub top_halves_primary_shrink_pct: Option<(f64, f64)>,
+    /// held-out primary-channel shrink with each, and the change of its
+    /// leading parameter between them relative to its value (a drift check).
+    pub top_halves_primary_shrink_pct: Option<(f64, f64, f64)>,
     /// The definition of every figure above, by label.
     pub figure_definitions: BTreeMap<String, String>,
     /// Sanity gates, reported before any finding.

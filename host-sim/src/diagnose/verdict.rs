@@ -52,7 +52,7 @@ pub fn decide(
     stack_primary: f64,
     dist: Option<&DisturbanceFit>,
     structure: Option<&TimeStructure>,
-    top_halves: Option<(f64, f64)>,
+    top_halves: Option<(f64, f64, f64)>,
 ) -> Verdict {
     let shares: Vec<(String, f64)> =
         ranking.iter().take(3).map(|r| (r.effect.clone(), r.primary_shrink_pct.max(0.0))).collect();
@@ -82,15 +82,21 @@ pub fn decide(
     let lib_raw = if top.is_some() { stack_primary.max(0.0) } else { 0.0 };
     let top_shrink = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
     let unstable = top_halves
-        .filter(|(a, b)| !(a.min(*b) >= super::rank::STABLE_SHARE * top_shrink))
-        .map(|(a, b)| {
+        .filter(|(a, b, dp)| {
+            !(a.min(*b) >= super::rank::STABLE_SHARE * top_shrink) || *dp > super::rank::STABLE_PARAM_CHANGE
+        })
+        .map(|(a, b, dp)| {
             format!(
-                "; {} fitted on either half of the training run alone keeps only {a:.0} % / {b:.0} % of the held-out gap against {top_shrink:.0} %: its parameters drift over the run, it stands in for something time-varying",
-                top.unwrap_or("?")
+                "; {} fitted on each half of the training run alone removes {a:.0} % / {b:.0} % of the held-out gap against {top_shrink:.0} %, its leading parameter changing by {:.0} % between the halves: its parameters drift over the run, it stands in for something time-varying",
+                top.unwrap_or("?"),
+                100.0 * dp
             )
         });
     let lib = if unstable.is_some() { 0.0 } else { lib_raw };
-    let dist_total = dist.map_or(0.0, |d| d.primary_shrink_pct.max(0.0));
+    // A piecewise-constant signal whose steps follow the logged signals is
+    // a model error of the nominal, not an unmeasured force: not counted.
+    let locked = dist.filter(|d| d.locked_to_signals);
+    let dist_total = dist.filter(|d| !d.locked_to_signals).map_or(0.0, |d| d.primary_shrink_pct.max(0.0));
     if let Some(g) = gates.iter().find(|g| super::gates::baseline_broken(g)) {
         v.kind = "baseline_mismatch".into();
         v.explained_pct = lib.max(dist_total);
@@ -103,7 +109,7 @@ pub fn decide(
         return v;
     }
     let dist_better = dist.is_some_and(|d| d.over_stack_points >= DISTURBANCE_OVER_STACK_POINTS);
-    if dist_better && dist_total >= MOST_OF_GAP_PCT {
+    if dist_total >= MOST_OF_GAP_PCT && (lib < MOST_OF_GAP_PCT || dist_better) {
         let d = dist.expect("checked");
         v.kind = "disturbance".into();
         v.explained_pct = dist_total;
@@ -132,19 +138,26 @@ pub fn decide(
             v.remaining_gap_pct
         );
     } else {
-        let best = lib.max(dist_total).max(if unstable.is_some() { 0.0 } else { lib_raw });
+        let best = lib_raw.max(dist_total);
         v.kind = "unexplained".into();
         v.explained_pct = best;
         v.explained_by = if dist_total > lib { "disturbance".into() } else { "library stack".into() };
         v.remaining_gap_pct = 100.0 - best;
         v.headline = format!(
-            "**Unexplained**: no library effect, stack or disturbance removes most of the held-out gap — {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects explain at most: {share_txt}{}{}.",
+            "**Unexplained**: no library effect with stable parameters, stack or disturbance removes most of the held-out gap — {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects explain at most: {share_txt}{}{}.",
             v.remaining_gap_pct,
             unstable.unwrap_or_default(),
-            dist.map_or(String::new(), |d| format!(
-                "; a piecewise-constant disturbance ({} change points) {PRIMARY} {:.1} %",
-                d.heldout_change_points, d.primary_shrink_pct
-            ))
+            match (dist, locked) {
+                (Some(d), Some(_)) => format!(
+                    "; a piecewise-constant signal ({} change points, {:.0} % of them within {:.0} ms of a logged move, acceleration or load change against {:.0} % by chance) would remove {PRIMARY} {:.1} %, but it follows the logged signals: a model error of the nominal, not an unmeasured force",
+                    d.heldout_change_points, d.signal_locked_pct, 1e3 * super::disturbance::LOCK_TOL_S, d.chance_pct, d.primary_shrink_pct
+                ),
+                (Some(d), None) => format!(
+                    "; a piecewise-constant disturbance ({} change points) {PRIMARY} {:.1} %",
+                    d.heldout_change_points, d.primary_shrink_pct
+                ),
+                _ => String::new(),
+            }
         );
     }
     v
