@@ -53,6 +53,7 @@ struct Outcome {
     gates: Vec<String>,
     top_halves: Option<(f64, f64, f64)>,
     disturbance_locked_to_signals: Option<bool>,
+    disturbance_signal_locked_vs_chance_pct: Option<(f64, f64)>,
     wall_s: f64,
 }
 
@@ -125,6 +126,7 @@ fn run_case(spec: Spec) -> Outcome {
         gates: s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect(),
         top_halves: s.top_halves_primary_shrink_pct,
         disturbance_locked_to_signals: s.disturbance.as_ref().map(|x| x.locked_to_signals),
+        disturbance_signal_locked_vs_chance_pct: s.disturbance.as_ref().map(|x| (x.signal_locked_pct, x.chance_pct)),
         wall_s: t0.elapsed().as_secs_f64(),
     }
 }

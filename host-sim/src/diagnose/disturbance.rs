@@ -27,10 +27,13 @@ pub const CHANNEL_MIN_PCT: f64 = 10.0;
 /// Change points within this of a logged-signal event count as locked to
 /// it, s.
 pub const LOCK_TOL_S: f64 = 0.05;
-/// Change points locked to logged-signal events beyond chance by this many
-/// points: the "disturbance" follows the motion or the measured load, so it
-/// is a model error of the nominal, not an unmeasured external force.
-pub const LOCKED_EXCESS_POINTS: f64 = 30.0;
+/// Change points locked to logged-signal events: at least `LOCKED_RATIO`
+/// times as often near one as chance puts them there, and at least
+/// `LOCKED_EXCESS_POINTS` above chance. The "disturbance" then follows the
+/// motion or the measured load, so it is a model error of the nominal, not
+/// an unmeasured external force (whose events have their own clock).
+pub const LOCKED_RATIO: f64 = 2.0;
+pub const LOCKED_EXCESS_POINTS: f64 = 10.0;
 
 /// Thresholds (robust sigmas) tried on the training part.
 pub const THRESHOLDS: [f64; 6] = [4.0, 6.0, 8.0, 12.0, 16.0, 24.0];
@@ -210,7 +213,7 @@ pub fn fit(
         base: String::new(),
         signal_locked_pct: lk,
         chance_pct: ch,
-        locked_to_signals: lk - ch >= LOCKED_EXCESS_POINTS,
+        locked_to_signals: lk >= LOCKED_RATIO * ch && lk - ch >= LOCKED_EXCESS_POINTS,
         train_gap_after: train_gap,
         threshold_sigma: k,
         train_cv_shrink_pct: shrink(base_t, train_gap),

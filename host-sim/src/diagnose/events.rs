@@ -491,7 +491,11 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
             (name.to_string(), if var > 0.0 { (cov / var.sqrt()).abs() } else { 0.0 })
         })
         .collect();
-    let best_in = input_correlation.iter().cloned().fold((String::new(), 0.0), |m, v| if v.1 > m.1 { v } else { m });
+    let best_in = input_correlation
+        .iter()
+        .filter(|(n, _)| !(c == super::residual::TORQUE && n == "current"))
+        .cloned()
+        .fold((String::new(), 0.0), |m, v| if v.1 > m.1 { v } else { m });
     let input_r2_pct = input_r2(segs, rem, c);
     let white = p > WHITE_P;
     let duration: f64 = segs.iter().map(|s| s.len() as f64 * s.dt).sum();
@@ -567,7 +571,12 @@ fn input_r2(segs: &[&Segment], rem: &Remainder, c: usize) -> f64 {
         for i in (0..s.len()).step_by(4) {
             let w = s.weight(c, i);
             let v = s.v[i];
-            let f = nalgebra::SVector::<f64, P>::from([1.0, v, v.signum(), v.abs(), s.a[i], s.f_load[i], s.iq[i], s.x[i], s.iq[i] * s.t_rel[i]]) * w;
+            // The torque channel is the current minus the nominal: the
+            // current itself is no input there (it would explain any
+            // residual); a drifting current gain (i·t) still is.
+            let iq = if c == super::residual::TORQUE { 0.0 } else { s.iq[i] };
+            let f = nalgebra::SVector::<f64, P>::from([1.0, v, v.signum(), v.abs(), s.a[i], s.f_load[i], iq, s.x[i], s.iq[i] * s.t_rel[i]])
+                * w;
             let y = w * x[i];
             ata += f * f.transpose();
             atb += f * y;

@@ -364,7 +364,10 @@ pub fn diagnose_with(
             // Events at the fixed, conservative threshold (the disturbance's
             // may be lower: more change points can help its levels).
             let cps_c = if c == residual::VOLTAGE { vec![Vec::new(); held.len()] } else { cps_fixed.clone() };
-            events::analyse(&held, &rem_h, c, &cps_c, if c == residual::VOLTAGE { 0.0 } else { steps_pct(c) })
+            // Steps that follow the logged signals are motion-locked model
+            // error, not steps of their own.
+            let steps = if c == residual::VOLTAGE || dist.locked_to_signals { 0.0 } else { steps_pct(c) };
+            events::analyse(&held, &rem_h, c, &cps_c, steps)
         })
         .collect();
 
