@@ -76,7 +76,7 @@ fn energy_share_after_events_has_its_closed_form() {
     let ev: Vec<usize> = (0..10).map(|k| 400 + 900 * k).collect();
     let r: Vec<f64> = (0..n).map(|i| if ev.iter().any(|e| i >= *e && i < e + 100) { 1.0 } else { 0.0 }).collect();
     let s = seg(r, true);
-    let (e, t) = events::share_after(&[&s], &rem(&s), TORQUE, &[ev.clone()], events::EVENT_BEFORE_S, events::EVENT_AFTER_S);
+    let (e, t) = events::share_after(&[&s], &rem(&s), TORQUE, std::slice::from_ref(&ev), events::EVENT_BEFORE_S, events::EVENT_AFTER_S);
     assert!((e - 100.0).abs() < 1e-9, "energy share {e}");
     let expect = 100.0 * (10 * 321) as f64 / n as f64;
     assert!((t - expect).abs() < 1e-9, "time share {t} vs {expect}");

@@ -90,11 +90,11 @@ fn cv_levels(s: &Segment, x: &[f64], c: usize, cps: &[usize]) -> (Vec<f64>, Vec<
         let (a, e) = (iv[0], iv[1]);
         let mut sw = [0.0; 2];
         let mut swx = [0.0; 2];
-        for i in a..e {
+        for (i, xi) in x.iter().enumerate().take(e).skip(a) {
             let p = ((i - a) / b) % 2;
             let w2 = s.weight(c, i).powi(2);
             sw[p] += w2;
-            swx[p] += w2 * x[i];
+            swx[p] += w2 * xi;
         }
         let lv = |p: usize| if sw[p] > 0.0 { swx[p] / sw[p] } else { 0.0 };
         for (i, pr) in pred.iter_mut().enumerate().take(e).skip(a) {

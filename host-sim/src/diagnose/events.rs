@@ -443,13 +443,13 @@ pub fn analyse(segs: &[&Segment], rem: &Remainder, c: usize, cps: &[Vec<usize>],
         let Some(x) = &r[c] else { continue };
         let half = ((0.5 * SLOW_S / s.dt) as usize).max(1);
         let mut pre_s = vec![0.0; s.len() + 1];
-        for i in 0..s.len() {
-            pre_s[i + 1] = pre_s[i] + s.weight(c, i) * x[i];
+        for (i, xi) in x.iter().enumerate() {
+            pre_s[i + 1] = pre_s[i] + s.weight(c, i) * xi;
         }
-        for i in 0..s.len() {
+        for (i, xi) in x.iter().enumerate() {
             let (a, b) = (i.saturating_sub(half), (i + half + 1).min(s.len()));
             slow += ((pre_s[b] - pre_s[a]) / (b - a) as f64).powi(2);
-            tot += (s.weight(c, i) * x[i]).powi(2);
+            tot += (s.weight(c, i) * xi).powi(2);
         }
     }
     let slow_share_pct = if tot > 0.0 { 100.0 * slow / tot } else { 0.0 };

@@ -68,6 +68,10 @@ fn plot(d: &Diagnosis, s: &Segment, k: usize, c: usize, path: &Path) -> Result<(
     let err = |e: &dyn std::fmt::Display| anyhow!("plotting {}: {e}", path.display());
     let r = s.r[c].as_ref().expect("checked");
     let after = d.stack.as_ref().and_then(|(t, p)| fit::predict(t, p, s, &d.nominal)[c].clone());
+    // The residual the disturbance was fitted on: the stack's remainder, or
+    // the nominal residual when that left less on training.
+    let on_nominal = d.summary.disturbance.as_ref().is_some_and(|z| z.base == "nominal");
+    let after = if on_nominal { None } else { after };
     let rem: Vec<f64> = (0..s.len()).map(|i| s.weight(c, i) * (r[i] - after.as_ref().map_or(0.0, |p| p[i]))).collect();
     let dist: Option<Vec<f64>> = d.disturbance_heldout.get(k).and_then(|p| p[c].clone());
     let step = (s.len() / 4000).max(1);
@@ -78,7 +82,11 @@ fn plot(d: &Diagnosis, s: &Segment, k: usize, c: usize, path: &Path) -> Result<(
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut ch = ChartBuilder::on(&root)
         .caption(
-            format!("{} remainder after the stack, held-out run, change points marked", CHANNELS[c]),
+            format!(
+                "{} {}, held-out run, change points marked",
+                CHANNELS[c],
+                if on_nominal { "nominal residual" } else { "remainder after the stack" }
+            ),
             ("sans-serif", 22),
         )
         .margin(15)
@@ -98,7 +106,7 @@ fn plot(d: &Diagnosis, s: &Segment, k: usize, c: usize, path: &Path) -> Result<(
     }
     ch.draw_series(LineSeries::new((0..s.len()).step_by(step).map(|i| (s.t[i], rem[i])), BLUE.stroke_width(1)))
         .map_err(|e| err(&e))?
-        .label("remainder")
+        .label(if on_nominal { "nominal residual" } else { "remainder after the stack" })
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
     if let Some(p) = dist {
         ch.draw_series(LineSeries::new(

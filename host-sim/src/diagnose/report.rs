@@ -240,6 +240,18 @@ fn markdown(d: &Diagnosis) -> String {
             dz.over_stack_points,
             dz.remainder_explained_pct
         );
+        let _ = writeln!(
+            m,
+            "Its change points lie within {:.0} ms of a logged move, reference-acceleration or load change in {:.0} % of cases against {:.0} % by chance: {}\n",
+            1e3 * super::disturbance::LOCK_TOL_S,
+            dz.signal_locked_pct,
+            dz.chance_pct,
+            if dz.locked_to_signals {
+                "locked to the logged signals — a model error of the nominal, not an unmeasured force (not counted in the verdict)"
+            } else {
+                "not locked to the logged signals (events with their own clock, as an unmeasured force has)"
+            }
+        );
         if !dz.change_times_s.is_empty() {
             let _ = writeln!(
                 m,

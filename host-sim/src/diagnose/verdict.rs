@@ -43,6 +43,7 @@ pub struct Verdict {
     pub library_shares: Vec<(String, f64)>,
 }
 
+#[allow(clippy::too_many_arguments)] // every input is a separate finding
 pub fn decide(
     gates: &[Gate],
     ranking: &[RankEntry],
@@ -83,7 +84,9 @@ pub fn decide(
     let top_shrink = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
     let unstable = top_halves
         .filter(|(a, b, dp)| {
-            !(a.min(*b) >= super::rank::STABLE_SHARE * top_shrink) || *dp > super::rank::STABLE_PARAM_CHANGE
+            // NaN (a half that could not be fitted) counts as unstable.
+            let keeps = a.min(*b) >= super::rank::STABLE_SHARE * top_shrink;
+            !keeps || dp.is_nan() || *dp > super::rank::STABLE_PARAM_CHANGE
         })
         .map(|(a, b, dp)| {
             format!(
