@@ -28,6 +28,12 @@ fn seg(r: Vec<f64>, heldout: bool) -> Segment {
         iq: slow.clone(),
         x: slow.clone(),
         v_ref: slow,
+        // At rest as far as the load regressors go: φ_torque = L/2π exactly.
+        omega: vec![0.0; n],
+        theta: vec![0.0; n],
+        alpha: vec![0.0; n],
+        f_ax: vec![0.0; n],
+        c_loc: vec![0.0; n],
         sg_m: 10,
         dt: DT,
         ..Default::default()
