@@ -37,7 +37,7 @@ fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
         pair,
         "not flagged: {:?}; ranking {:?}",
         s.indistinguishable,
-        s.ranking.iter().map(|r| (&r.effect, r.heldout_gap_shrink_pct)).collect::<Vec<_>>()
+        s.ranking.iter().map(|r| (&r.effect, r.weighted_shrink_pct)).collect::<Vec<_>>()
     );
     assert!(s.ruled_out.iter().any(|r| r.contains("no current")));
     // Friction effects need the torque channel: not applicable, not ranked.

@@ -109,12 +109,46 @@ impl Effect {
         }
     }
 
+    /// Parameter names with the units of the log's own channels. With the
+    /// rig's physics the torque channel is N·m; with a regression nominal
+    /// (`--reference`) it is the logged current (A), the position channel
+    /// the tracking error (m) and speed the rod's (m/s): nothing borrows a
+    /// lead or torque constant the rig does not have.
+    pub fn params_for(self, nominal: &Nominal) -> Vec<String> {
+        if matches!(nominal, Nominal::Physics(_)) {
+            return self.params().iter().map(|p| p.to_string()).collect();
+        }
+        let names: &[&str] = match self {
+            Effect::CoulombAsym => &["coulomb_pos_a", "coulomb_neg_a"],
+            Effect::ViscousAsym => &["viscous_pos_a_s_per_m", "viscous_neg_a_s_per_m"],
+            Effect::Stribeck => &["stribeck_current_a"],
+            Effect::LoadOffset => &["current_offset_a"],
+            Effect::Cogging => &["sin_current_a", "cos_current_a"],
+            Effect::HertzContact => &["contact_coefficient_m_per_n2_3_at_500n_preload"],
+            _ => self.params(),
+        };
+        names.iter().map(|p| p.to_string()).collect()
+    }
+
+    /// The shape parameter's name for this nominal (regression: the
+    /// Stribeck speed is the rod's, m/s).
+    pub fn grid_name_for(self, nominal: &Nominal) -> Option<&'static str> {
+        match (self, nominal) {
+            (Effect::Stribeck, Nominal::Regression(_)) => Some("stribeck_speed_m_s"),
+            _ => self.grid_for(nominal).map(|g| g.0),
+        }
+    }
+
     /// Shape parameter on a grid for this nominal, if any: with the
     /// physical model the lost motion follows the nut force (`flank`) and
     /// is linear in the play, with no shape to search.
     pub fn grid_for(self, nominal: &Nominal) -> Option<(&'static str, Vec<f64>)> {
         match (self, nominal) {
             (Effect::Backlash, Nominal::Physics(_)) => None,
+            // The rod's speed, m/s (0.4 mm/s … 40 mm/s).
+            (Effect::Stribeck, Nominal::Regression(_)) => {
+                Some(("stribeck_speed_m_s", (0..=24).map(|k| 4e-4 * 1.2f64.powi(k)).collect()))
+            }
             _ => self.grid(),
         }
     }
@@ -144,7 +178,10 @@ impl Effect {
     /// Why the effect cannot be tested on these segments, if so.
     pub fn not_applicable(self, seg: &Segment, nominal: &Nominal) -> Option<String> {
         let phys = matches!(nominal, Nominal::Physics(_));
-        let needs_encoder = matches!(self, Effect::Cogging | Effect::EncoderEccentricity | Effect::CurrentSensor);
+        // Once per revolution needs a revolution: without an encoder a
+        // regression nominal has no lead to turn the rod travel into turns.
+        let needs_encoder = matches!(self, Effect::Cogging | Effect::EncoderEccentricity | Effect::CurrentSensor)
+            || (self == Effect::LeadErrorPerRev && !phys);
         if needs_encoder && !seg.encoder {
             return Some("needs the motor angle (encoder) in the log".into());
         }
@@ -189,7 +226,7 @@ impl Effect {
                 out[1][TORQUE] = w.min(0.0);
             }
             Effect::Stribeck => {
-                let w = if matches!(nominal, Nominal::Physics(_)) { om } else { seg.v[i] / k };
+                let w = if matches!(nominal, Nominal::Physics(_)) { om } else { seg.v[i] };
                 out[0][TORQUE] = (-(w / hyper).powi(2)).exp() * sgn;
             }
             Effect::Backlash => {
@@ -213,7 +250,13 @@ impl Effect {
                 let t_shaft = seg.y[TORQUE].as_ref().map_or(0.0, |y| y[i]) - j_eq_rot(nominal) * seg.alpha[i];
                 out[0][POSITION] = -k * t_shaft;
             }
-            Effect::LeadErrorCumulative => out[0][POSITION] = k * th,
+            Effect::LeadErrorCumulative => {
+                out[0][POSITION] = match nominal {
+                    Nominal::Physics(_) => k * th,
+                    // The rod's own travel, not a default lead × angle.
+                    Nominal::Regression(_) => seg.x[i],
+                }
+            }
             Effect::LeadErrorPerRev => {
                 out[0][POSITION] = th.sin();
                 out[1][POSITION] = th.cos();
@@ -268,14 +311,15 @@ impl Effect {
                 out[0][POSITION] = -k * s + cm * dds;
                 out[1][POSITION] = -k * c + cm * ddc;
             }
-            Effect::LoadOffset => {
-                let mu = match nominal {
-                    Nominal::Physics(p) => p.mu,
-                    Nominal::Regression(_) => 0.0,
-                };
-                out[0][TORQUE] = k * (1.0 + mu * sgn * f.signum());
-                out[0][POSITION] = -seg.c_loc[i];
-            }
+            Effect::LoadOffset => match nominal {
+                Nominal::Physics(p) => {
+                    out[0][TORQUE] = k * (1.0 + p.mu * sgn * f.signum());
+                    out[0][POSITION] = -seg.c_loc[i];
+                }
+                // No lead and no compliance known: a constant offset of the
+                // logged current (A), nothing in the tracking error.
+                Nominal::Regression(_) => out[0][TORQUE] = 1.0,
+            },
         }
     }
 }

@@ -9,20 +9,31 @@
 //! part) → `report` (markdown, PNG, summary.json).
 
 pub mod cranfield;
+pub mod disturbance;
 pub mod effects;
+pub mod events;
+pub mod export;
+pub mod figures;
 pub mod fit;
+pub mod gates;
 pub mod log;
+pub mod plausible;
+pub mod rank;
 pub mod regions;
 pub mod replay;
 pub mod report;
 pub mod residual;
 pub mod spectrum;
+pub mod summary;
+pub mod verdict;
 
 use anyhow::{bail, Context, Result};
+use figures::shrink;
 use fit::Term;
-use log::{Issue, Log, Severity};
+use log::{Log, Severity};
 use residual::{Nominal, Segment, CHANNELS, NCH};
 use std::collections::BTreeMap;
+pub use summary::{ChannelAnalysis, NotRanked, RankEntry, RegionComparison, Summary};
 use std::path::{Path, PathBuf};
 
 /// `host-sim diagnose` arguments.
@@ -93,91 +104,6 @@ pub fn read_log(path: &Path, format: &str) -> Result<Log> {
     }
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RankEntry {
-    pub effect: String,
-    pub description: String,
-    pub params: BTreeMap<String, f64>,
-    /// Weighted over all residual channels (the ranking score).
-    pub heldout_gap_shrink_pct: f64,
-    /// RMS residual shrink per channel on the held-out part, %.
-    pub heldout_shrink_by_channel: BTreeMap<String, f64>,
-    /// Fit % of the primary channel on the held-out part.
-    pub heldout_fit_before: f64,
-    pub heldout_fit_after: f64,
-    pub heldout_fit_after_by_channel: BTreeMap<String, f64>,
-    pub train_gap_shrink_pct: f64,
-    pub indistinguishable_from: Vec<String>,
-}
-
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct NotRanked {
-    pub effect: String,
-    pub status: String,
-    pub reason: String,
-}
-
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct ChannelAnalysis {
-    pub channel: String,
-    pub fit_train_pct: f64,
-    pub fit_heldout_pct: f64,
-    pub residual_rms: f64,
-    pub regions: Vec<regions::RegionStat>,
-    pub bands: Vec<spectrum::Band>,
-    pub windows: Vec<spectrum::Window>,
-    pub correlation: spectrum::Correlation,
-}
-
-/// One region of a channel: the log's RMS residual against the healthy
-/// reference log's, both against the same nominal.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RegionComparison {
-    pub channel: String,
-    pub split: String,
-    pub region: String,
-    pub rms_log: f64,
-    pub rms_reference: f64,
-    pub ratio: f64,
-    pub mean_log: f64,
-    pub mean_reference: f64,
-}
-
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Summary {
-    pub source: String,
-    pub heldout_source: Option<String>,
-    pub nominal: String,
-    pub samples: usize,
-    pub train_segments: usize,
-    pub heldout_segments: usize,
-    pub edge_samples_per_segment_end: usize,
-    pub ruled_out: Vec<String>,
-    pub issues: Vec<Issue>,
-    pub channels: Vec<ChannelAnalysis>,
-    /// With a reference (healthy) log: where this log differs from it.
-    pub reference_comparison: Vec<RegionComparison>,
-    pub primary_channel: String,
-    pub top_effect: Option<String>,
-    pub ranking: Vec<RankEntry>,
-    pub not_ranked: Vec<NotRanked>,
-    pub indistinguishable: Vec<(String, String)>,
-    pub heldout_fit_before: f64,
-    pub heldout_fit_after: f64,
-    /// Held-out RMS shrink of the primary channel with the top effect, %.
-    pub gap_shrink_pct: f64,
-    /// The same over all channels, weighted (the ranking score), %.
-    pub gap_shrink_weighted_pct: f64,
-    pub stack: Vec<String>,
-    pub stack_params: BTreeMap<String, f64>,
-    pub heldout_fit_after_stack: f64,
-    pub gap_shrink_stack_pct: f64,
-    pub gap_shrink_stack_weighted_pct: f64,
-    pub wall_s: f64,
-    /// Closed-loop replay (with `--replay`).
-    pub replay: Option<replay::Replay>,
-}
-
 /// Everything the report needs besides the summary.
 pub struct Diagnosis {
     pub summary: Summary,
@@ -187,6 +113,10 @@ pub struct Diagnosis {
     /// Top-effect and stack terms with their parameters.
     pub top: Option<(Vec<Term>, Vec<f64>)>,
     pub stack: Option<(Vec<Term>, Vec<f64>)>,
+    /// The disturbance's cross-validated prediction of the held-out
+    /// remainder (per held-out segment), and its change points.
+    pub disturbance_heldout: events::Remainder,
+    pub change_points: Vec<Vec<usize>>,
 }
 
 impl Diagnosis {
@@ -195,6 +125,57 @@ impl Diagnosis {
     }
     pub fn heldout(&self) -> Vec<&Segment> {
         self.segments.iter().filter(|s| s.heldout).collect()
+    }
+    /// The held-out residual after the stack (what the time-structure
+    /// analyses see), per held-out segment.
+    pub fn heldout_remainder(&self) -> events::Remainder {
+        self.heldout()
+            .iter()
+            .map(|s| {
+                let p = self.stack.as_ref().map(|(t, q)| fit::predict(t, q, s, &self.nominal));
+                std::array::from_fn(|c| {
+                    let r = s.r[c].as_ref()?;
+                    let pc = p.as_ref().and_then(|p| p[c].as_ref());
+                    Some(r.iter().enumerate().map(|(i, v)| v - pc.map_or(0.0, |q| q[i])).collect())
+                })
+            })
+            .collect()
+    }
+}
+
+/// Samples `[a, b)` of a segment as a segment of its own.
+pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
+    let sl = |v: &Vec<f64>| v[a..b].to_vec();
+    Segment {
+        run: s.run,
+        heldout: held,
+        first_row: s.first_row + a,
+        t: sl(&s.t),
+        t_rel: sl(&s.t_rel),
+        theta: sl(&s.theta),
+        omega: sl(&s.omega),
+        alpha: sl(&s.alpha),
+        x: sl(&s.x),
+        v: sl(&s.v),
+        a: sl(&s.a),
+        v_ref: sl(&s.v_ref),
+        a_ref: sl(&s.a_ref),
+        f_load: sl(&s.f_load),
+        f_ax: sl(&s.f_ax),
+        iq: sl(&s.iq),
+        dir: sl(&s.dir),
+        since_reversal_s: sl(&s.since_reversal_s),
+        c_loc: sl(&s.c_loc),
+        input: sl(&s.input),
+        y: std::array::from_fn(|c| s.y[c].as_ref().map(sl)),
+        r: std::array::from_fn(|c| s.r[c].as_ref().map(sl)),
+        encoder: s.encoder,
+        rod_from_scale: s.rod_from_scale,
+        play: s.play.iter().map(sl).collect(),
+        flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
+        motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
+        sg_m: s.sg_m,
+        dt: s.dt,
     }
 }
 
@@ -208,60 +189,29 @@ fn split_segments(mut segs: Vec<Segment>) -> Vec<Segment> {
     }
     let Some(s) = segs.pop() else { return segs };
     let cut = s.len() * 3 / 5;
-    let take = |a: usize, b: usize, held: bool| {
-        let sl = |v: &Vec<f64>| v[a..b].to_vec();
-        Segment {
-            run: s.run,
-            heldout: held,
-            first_row: s.first_row + a,
-            t: sl(&s.t),
-            t_rel: sl(&s.t_rel),
-            theta: sl(&s.theta),
-            omega: sl(&s.omega),
-            alpha: sl(&s.alpha),
-            x: sl(&s.x),
-            v: sl(&s.v),
-            a: sl(&s.a),
-            v_ref: sl(&s.v_ref),
-            a_ref: sl(&s.a_ref),
-            f_load: sl(&s.f_load),
-            f_ax: sl(&s.f_ax),
-            iq: sl(&s.iq),
-            dir: sl(&s.dir),
-            since_reversal_s: sl(&s.since_reversal_s),
-            c_loc: sl(&s.c_loc),
-            input: sl(&s.input),
-            y: std::array::from_fn(|c| s.y[c].as_ref().map(sl)),
-            r: std::array::from_fn(|c| s.r[c].as_ref().map(sl)),
-            encoder: s.encoder,
-            rod_from_scale: s.rod_from_scale,
-            play: s.play.iter().map(sl).collect(),
-            flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
-            motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
-            sg_m: s.sg_m,
-            dt: s.dt,
-        }
-    };
+    let take = |a: usize, b: usize, held: bool| slice_segment(&s, a, b, held);
     vec![take(0, cut, false), take(cut, s.len(), true)]
-}
-
-fn shrink(before: f64, after: f64) -> f64 {
-    if before > 0.0 {
-        100.0 * (1.0 - after / before)
-    } else {
-        0.0
-    }
 }
 
 /// Held-out shrink (primary channel, %) below which no effect is named.
 pub const MIN_FINDING_PCT: f64 = 5.0;
 
-/// A ranked effect: its entry, terms, parameters and held-out prediction.
-type Ranked = (RankEntry, Vec<Term>, Vec<f64>, Vec<fit::ChannelPred>);
+/// What the diagnosis ranks: the library (default all of it; the
+/// open-world suite holds effects out).
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub library: Vec<effects::Effect>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options { library: effects::ALL.to_vec() }
+    }
+}
 
 /// The diagnosis of `log` (and optional held-out log) against `nominal`.
 pub fn diagnose(log: &Log, heldout: Option<&Log>, nominal: Nominal, tilt_default_deg: f64) -> Result<Diagnosis> {
-    diagnose_against(log, heldout, None, nominal, tilt_default_deg)
+    diagnose_with(log, heldout, None, nominal, tilt_default_deg, &Options::default())
 }
 
 /// `diagnose`, comparing region by region with a healthy `reference` log.
@@ -271,6 +221,29 @@ pub fn diagnose_against(
     reference: Option<&Log>,
     nominal: Nominal,
     tilt_default_deg: f64,
+) -> Result<Diagnosis> {
+    diagnose_with(log, heldout, reference, nominal, tilt_default_deg, &Options::default())
+}
+
+/// Unit of channel `c`'s residual under this nominal.
+pub fn channel_unit(nominal: &Nominal, c: usize) -> &'static str {
+    match (nominal, c) {
+        (Nominal::Physics(_), 0) => "N·m",
+        (Nominal::Regression(_), 0) => "A (logged current)",
+        (Nominal::Physics(_), 1) => "m (scale − motor side)",
+        (Nominal::Regression(_), 1) => "m (tracking error)",
+        _ => "V",
+    }
+}
+
+/// The full diagnosis with options.
+pub fn diagnose_with(
+    log: &Log,
+    heldout: Option<&Log>,
+    reference: Option<&Log>,
+    nominal: Nominal,
+    tilt_default_deg: f64,
+    opts: &Options,
 ) -> Result<Diagnosis> {
     let t0 = std::time::Instant::now();
     let mut issues = log.issues.clone();
@@ -311,210 +284,92 @@ pub fn diagnose_against(
     let dt = train[0].t.get(1).map_or(1e-3, |t1| t1 - train[0].t[0]);
     let w = fit::channel_weights(&train);
     let gap_before_h = fit::gap(&held, None, &w);
-    let gap_before_t = fit::gap(&train, None, &w);
     let fit_before_h = fit::fit_pct(&held, None);
     let fit_before_t = fit::fit_pct(&train, None);
 
-    // Every effect: fit on train, score on held-out.
-    let mut ranked: Vec<Ranked> = Vec::new();
-    let mut not_ranked = Vec::new();
-    for eff in effects::ALL {
-        if let Some(why) = eff.not_applicable(train[0], &nominal) {
-            not_ranked.push(NotRanked { effect: eff.name().into(), status: "not_applicable".into(), reason: why });
-            continue;
-        }
-        match fit::fit_effect(eff, &train, &nominal, &w) {
-            Err(why) => {
-                not_ranked.push(NotRanked { effect: eff.name().into(), status: "not_converged".into(), reason: why })
-            }
-            Ok(f) if fit::unexcited(&f.terms, &train, &held, &nominal, &w).is_some() => {
-                let name = fit::unexcited(&f.terms, &train, &held, &nominal, &w).unwrap_or_default();
-                not_ranked.push(NotRanked {
-                    effect: eff.name().into(),
-                    status: "not_converged".into(),
-                    reason: format!(
-                        "parameter `{name}` is not identifiable: the training part does not excite it (under 1 % of its held-out excitation)"
-                    ),
-                });
-            }
-            Ok(f) => {
-                let pred: Vec<_> = held.iter().map(|s| fit::predict(&f.terms, &f.params, s, &nominal)).collect();
-                let g = fit::gap(&held, Some(&pred), &w);
-                let fa = fit::fit_pct(&held, Some(&pred));
-                let mut params: BTreeMap<String, f64> =
-                    eff.params().iter().zip(&f.params).map(|(n, v)| (n.to_string(), *v)).collect();
-                if let Some((gname, _)) = eff.grid_for(&nominal) {
-                    params.insert(gname.into(), f.terms[0].hyper);
-                }
-                let entry = RankEntry {
-                    effect: eff.name().into(),
-                    description: eff.description().into(),
-                    params,
-                    heldout_gap_shrink_pct: shrink(gap_before_h, g),
-                    heldout_shrink_by_channel: (0..NCH)
-                        .filter(|c| fit_before_h[*c].is_some())
-                        .map(|c| {
-                            let mut wc = [0.0; NCH];
-                            wc[c] = 1.0;
-                            (
-                                CHANNELS[c].to_string(),
-                                shrink(fit::gap(&held, None, &wc), fit::gap(&held, Some(&pred), &wc)),
-                            )
-                        })
-                        .collect(),
-                    heldout_fit_before: 0.0,
-                    heldout_fit_after: 0.0,
-                    heldout_fit_after_by_channel: (0..NCH)
-                        .filter_map(|c| fa[c].map(|v| (CHANNELS[c].to_string(), v)))
-                        .collect(),
-                    train_gap_shrink_pct: shrink(gap_before_t, f.train_gap),
-                    indistinguishable_from: Vec::new(),
-                };
-                ranked.push((entry, f.terms, f.params, pred));
-            }
-        }
-    }
-    ranked.sort_by(|a, b| b.0.heldout_gap_shrink_pct.total_cmp(&a.0.heldout_gap_shrink_pct));
-
-    // Primary channel: where the top effect removes the most, else the
-    // channel with the worst held-out fit.
-    let avail: Vec<usize> = (0..NCH).filter(|c| fit_before_h[*c].is_some()).collect();
-    let primary = match ranked.first() {
-        Some((_, terms, params, pred)) => {
-            let _ = (terms, params);
-            *avail
-                .iter()
-                .max_by(|a, b| {
-                    let gain = |c: usize| {
-                        let before: f64 = held
-                            .iter()
-                            .filter_map(|s| Some((s, s.r[c].as_ref()?)))
-                            .flat_map(|(s, r)| r.iter().enumerate().map(move |(i, x)| (s.weight(c, i) * x).powi(2)))
-                            .sum();
-                        let after: f64 = held
-                            .iter()
-                            .zip(pred)
-                            .filter_map(|(s, p)| Some((s, s.r[c].as_ref()?, p[c].as_ref()?)))
-                            .flat_map(|(s, r, p)| {
-                                r.iter().zip(p).enumerate().map(move |(i, (a, b))| (s.weight(c, i) * (a - b)).powi(2))
-                            })
-                            .sum();
-                        (before - after) * w[c] * w[c]
-                    };
-                    gain(**a).total_cmp(&gain(**b))
-                })
-                .unwrap_or(&0)
-        }
-        None => {
-            *avail.iter().min_by(|a, b| fit_before_h[**a].unwrap().total_cmp(&fit_before_h[**b].unwrap())).unwrap_or(&0)
-        }
-    };
-    for r in &mut ranked {
-        r.0.heldout_fit_before = fit_before_h[primary].unwrap_or(f64::NAN);
-        r.0.heldout_fit_after = r.0.heldout_fit_after_by_channel.get(CHANNELS[primary]).copied().unwrap_or(f64::NAN);
-    }
-
-    // Indistinguishable pairs: weighted predictions correlate > 0.95 on the
-    // held-out part, or scores within 1 point, both explaining > 10 %.
-    let mut indist = Vec::new();
-    let corr = |pa: &[fit::ChannelPred], pb: &[fit::ChannelPred]| {
-        let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
-        for (x, y) in pa.iter().zip(pb) {
-            for c in 0..NCH {
-                if let (Some(x), Some(y)) = (&x[c], &y[c]) {
-                    for (u, v) in x.iter().zip(y) {
-                        ab += u * v * w[c] * w[c];
-                        aa += u * u * w[c] * w[c];
-                        bb += v * v * w[c] * w[c];
-                    }
-                }
-            }
-        }
-        if aa > 0.0 && bb > 0.0 {
-            ab / (aa * bb).sqrt()
-        } else {
-            0.0
-        }
-    };
-    for a in 0..ranked.len() {
-        for b in a + 1..ranked.len() {
-            let (sa, sb) = (ranked[a].0.heldout_gap_shrink_pct, ranked[b].0.heldout_gap_shrink_pct);
-            if sa < 10.0 || sb < 10.0 {
-                continue;
-            }
-            if corr(&ranked[a].3, &ranked[b].3).abs() > 0.95 || (sa - sb).abs() < 1.0 {
-                let (na, nb) = (ranked[a].0.effect.clone(), ranked[b].0.effect.clone());
-                ranked[a].0.indistinguishable_from.push(nb.clone());
-                ranked[b].0.indistinguishable_from.push(na.clone());
-                indist.push((na, nb));
-            }
-        }
-    }
-
-    // Greedy stacking on the held-out gap.
-    // A finding: the best effect removes at least `MIN_FINDING_PCT` of the
-    // held-out gap in its channel; below that no effect is named.
-    let top = ranked
-        .first()
-        .filter(|r| {
-            r.0.heldout_gap_shrink_pct > 0.0
-                && r.0.heldout_shrink_by_channel.get(CHANNELS[primary]).is_some_and(|v| *v >= MIN_FINDING_PCT)
-        })
-        .map(|r| (r.1.clone(), r.2.clone()));
-    let mut stack_terms: Vec<Term> = top.as_ref().map(|t| t.0.clone()).unwrap_or_default();
-    let mut stack_params = top.as_ref().map(|t| t.1.clone()).unwrap_or_default();
-    let mut stack_gap = ranked
-        .first()
-        .filter(|_| top.is_some())
-        .map_or(gap_before_h, |r| gap_before_h * (1.0 - r.0.heldout_gap_shrink_pct / 100.0));
-    if top.is_some() {
-        for _ in 0..3 {
-            let mut best: Option<(Vec<Term>, Vec<f64>, f64)> = None;
-            for cand in ranked.iter().skip(1) {
-                if cand.0.heldout_gap_shrink_pct <= 1.0 || stack_terms.iter().any(|t| t.effect == cand.1[0].effect) {
-                    continue;
-                }
-                let mut terms = stack_terms.clone();
-                terms.extend(cand.1.iter().copied());
-                if let Ok(p) = fit::fit_terms(&terms, &train, &nominal, &w) {
-                    let pred: Vec<_> = held.iter().map(|s| fit::predict(&terms, &p, s, &nominal)).collect();
-                    let g = fit::gap(&held, Some(&pred), &w);
-                    if best.as_ref().is_none_or(|b| g < b.2) {
-                        best = Some((terms, p, g));
-                    }
-                }
-            }
-            match best {
-                Some((t, p, g)) if shrink(stack_gap, g) >= 5.0 => {
-                    stack_terms = t;
-                    stack_params = p;
-                    stack_gap = g;
-                }
-                _ => break,
-            }
-        }
-    }
+    let rk = rank::rank(&opts.library, &train, &held, &nominal, &w);
+    let primary = rk.primary;
+    let mut gates = gates::identity(log, heldout, reference);
+    gates.extend(gates::fit_gates(&train, &fit_before_t, &fit_before_h, &nominal, &rk.not_ranked, &|c| {
+        channel_unit(&nominal, c)
+    }));
+    let blocked = gates.iter().any(|g| g.kind.ends_with("_is_training") || g.kind.ends_with("_is_reference"));
+    let top = if blocked { None } else { rk.top.clone() };
+    let (stack_terms, stack_params) =
+        if blocked { (Vec::new(), Vec::new()) } else { (rk.stack_terms.clone(), rk.stack_params.clone()) };
+    let stack_gap = if blocked { gap_before_h } else { rk.stack_gap };
     let stack = (!stack_terms.is_empty()).then(|| (stack_terms.clone(), stack_params.clone()));
     let mut wp = [0.0; NCH];
     wp[primary] = 1.0;
-    let (stack_fit, stack_primary_shrink) = match &stack {
-        Some((t, p)) => {
-            let pred: Vec<_> = held.iter().map(|s| fit::predict(t, p, s, &nominal)).collect();
-            (
-                fit::fit_pct(&held, Some(&pred))[primary].unwrap_or(f64::NAN),
-                shrink(fit::gap(&held, None, &wp), fit::gap(&held, Some(&pred), &wp)),
-            )
-        }
-        None => (fit_before_h[primary].unwrap_or(f64::NAN), 0.0),
+    let gap_primary_h = fit::gap(&held, None, &wp);
+    let stack_pred = |segs: &[&Segment]| -> Vec<fit::ChannelPred> {
+        segs.iter()
+            .map(|s| match &stack {
+                Some((t, p)) => fit::predict(t, p, s, &nominal),
+                None => std::array::from_fn(|c| s.r[c].as_ref().map(|r| vec![0.0; r.len()])),
+            })
+            .collect()
     };
+    let pred_h = stack_pred(&held);
+    let stack_fit = fit::fit_pct(&held, Some(&pred_h))[primary].unwrap_or(f64::NAN);
+    let stack_primary_shrink = if stack.is_some() { shrink(gap_primary_h, fit::gap(&held, Some(&pred_h), &wp)) } else { 0.0 };
     let mut sp = BTreeMap::new();
     let mut k = 0;
     for t in &stack_terms {
-        for n in t.effect.params() {
+        for n in t.effect.params_for(&nominal) {
             sp.insert(format!("{}.{}", t.effect.name(), n), stack_params[k]);
             k += 1;
         }
     }
+
+    // The remainder after the stack: disturbance and time structure.
+    let remainder = |segs: &[&Segment], pred: &[fit::ChannelPred]| -> events::Remainder {
+        segs.iter()
+            .zip(pred)
+            .map(|(s, p)| {
+                std::array::from_fn(|c| {
+                    let r = s.r[c].as_ref()?;
+                    Some(r.iter().zip(p[c].as_ref()?).map(|(a, b)| a - b).collect())
+                })
+            })
+            .collect()
+    };
+    let rem_h = remainder(&held, &pred_h);
+    let rem_t = remainder(&train, &stack_pred(&train));
+    // The disturbance on the stack's remainder or on the nominal residual
+    // (a stack fitted on training may carry a wrong constant into the
+    // held-out part), whichever leaves less on training.
+    let nominal_rem = |segs: &[&Segment]| -> events::Remainder {
+        segs.iter().map(|s| std::array::from_fn(|c| s.r[c].clone())).collect()
+    };
+    let (rem_hn, rem_tn) = (nominal_rem(&held), nominal_rem(&train));
+    let on_stack = disturbance::fit(&train, &rem_t, &held, &rem_h, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    let on_nominal =
+        disturbance::fit(&train, &rem_tn, &held, &rem_hn, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    let use_nominal = stack.is_some() && on_nominal.0.train_gap_after < on_stack.0.train_gap_after;
+    let (mut dist, dist_pred, cps) = if use_nominal { on_nominal } else { on_stack };
+    dist.base = if use_nominal { "nominal".into() } else { "stack".into() };
+    dist.over_stack_points = dist.primary_shrink_pct - stack_primary_shrink.max(0.0);
+    let rem_base = if use_nominal { &rem_hn } else { &rem_h };
+    let cps_fixed = events::detect(&held, &rem_h, events::STEP_SIGMA);
+    let steps_pct = |c: usize| {
+        let mut wc = [0.0; NCH];
+        wc[c] = 1.0;
+        shrink(disturbance::gap(&held, rem_base, None, &wc), disturbance::gap(&held, rem_base, Some(&dist_pred), &wc))
+    };
+    let avail: Vec<usize> = (0..NCH).filter(|c| fit_before_h[*c].is_some()).collect();
+    let time_structure: Vec<events::TimeStructure> = avail
+        .iter()
+        .map(|&c| {
+            // Events at the fixed, conservative threshold (the disturbance's
+            // may be lower: more change points can help its levels).
+            let cps_c = if c == residual::VOLTAGE { vec![Vec::new(); held.len()] } else { cps_fixed.clone() };
+            // Steps that follow the logged signals are motion-locked model
+            // error, not steps of their own.
+            let steps = if c == residual::VOLTAGE || dist.locked_to_signals { 0.0 } else { steps_pct(c) };
+            events::analyse(&held, &rem_h, c, &cps_c, steps)
+        })
+        .collect();
 
     // Where the gap lies, per channel (all data, nominal residual).
     let all: Vec<&Segment> = segments.iter().collect();
@@ -560,7 +415,22 @@ pub fn diagnose_against(
             }
         }
     }
-    let top_entry = ranked.first().filter(|_| top.is_some()).map(|r| r.0.clone());
+    let ranking: Vec<RankEntry> = rk.ranked.iter().map(|r| r.0.clone()).collect();
+    let top_entry = ranking.first().filter(|_| top.is_some()).cloned();
+    let stack_names: Vec<String> = stack_terms.iter().map(|t| t.effect.name().to_string()).collect();
+    let stack_weighted = if stack.is_some() { shrink(gap_before_h, stack_gap).max(0.0) } else { 0.0 };
+    let top_name = top.as_ref().map(|t| t.0[0].effect.name().to_string());
+    let verdict = verdict::decide(
+        &gates,
+        &ranking,
+        top_name.as_deref(),
+        &stack_names,
+        stack_weighted,
+        stack_primary_shrink.max(0.0),
+        Some(&dist),
+        time_structure.iter().find(|t| t.channel == CHANNELS[primary]),
+        if blocked { None } else { rk.top_halves },
+    );
     let summary = Summary {
         source: log.source.clone(),
         heldout_source: heldout.map(|h| h.source.clone()),
@@ -577,31 +447,34 @@ pub fn diagnose_against(
         channels,
         reference_comparison,
         primary_channel: CHANNELS[primary].into(),
-        top_effect: top.as_ref().map(|t| t.0[0].effect.name().to_string()),
+        top_effect: top_name,
         heldout_fit_before: fit_before_h[primary].unwrap_or(f64::NAN),
         heldout_fit_after: top_entry
             .as_ref()
             .map_or(fit_before_h[primary].unwrap_or(f64::NAN), |e| e.heldout_fit_after),
-        gap_shrink_pct: top_entry
-            .as_ref()
-            .and_then(|e| e.heldout_shrink_by_channel.get(CHANNELS[primary]).copied())
-            .map_or(0.0, |v| v.max(0.0)),
-        gap_shrink_weighted_pct: top_entry.as_ref().map_or(0.0, |e| e.heldout_gap_shrink_pct.max(0.0)),
-        ranking: ranked.iter().map(|r| r.0.clone()).collect(),
-        not_ranked,
-        indistinguishable: indist,
-        stack: stack_terms.iter().map(|t| t.effect.name().to_string()).collect(),
+        gap_shrink_pct: top_entry.as_ref().map_or(0.0, |e| e.primary_shrink_pct.max(0.0)),
+        gap_shrink_weighted_pct: top_entry.as_ref().map_or(0.0, |e| e.weighted_shrink_pct.max(0.0)),
+        ranking,
+        not_ranked: rk.not_ranked,
+        indistinguishable: rk.indist,
+        stack: stack_names,
         stack_params: sp,
         heldout_fit_after_stack: stack_fit,
         gap_shrink_stack_pct: stack_primary_shrink.max(0.0),
-        gap_shrink_stack_weighted_pct: shrink(gap_before_h, stack_gap).max(0.0),
+        gap_shrink_stack_weighted_pct: stack_weighted,
+        top_halves_primary_shrink_pct: rk.top_halves,
+        figure_definitions: figures::definitions(CHANNELS[primary]),
+        gates,
+        time_structure,
+        disturbance: Some(dist),
+        verdict,
         wall_s: t0.elapsed().as_secs_f64(),
         replay: None,
     };
     drop(train);
     drop(held);
     drop(all);
-    Ok(Diagnosis { summary, nominal, segments, primary, top, stack })
+    Ok(Diagnosis { summary, nominal, segments, primary, top, stack, disturbance_heldout: dist_pred, change_points: cps })
 }
 
 /// `host-sim diagnose`.
@@ -633,15 +506,25 @@ pub fn run_cli(args: &DiagnoseArgs) -> Result<()> {
     }
     report::write(&d, &args.out)?;
     let s = &d.summary;
+    for g in &s.gates {
+        println!("WARNING [{}]: {}", g.kind, g.message);
+    }
+    println!("verdict: {}", s.verdict.headline);
     println!(
-        "top effect: {} (held-out gap shrink {:.1} %, fit {:.1} → {:.1} % on the {} channel); stack {:?}: {:.1} %",
+        "top effect: {} ({} {:.1} %, {} {:.1} %; fit {:.1} → {:.1} % on the {} channel); stack {:?}: {} {:.1} %, {} {:.1} %",
         s.top_effect.as_deref().unwrap_or("none"),
+        figures::PRIMARY,
         s.gap_shrink_pct,
+        figures::WEIGHTED,
+        s.gap_shrink_weighted_pct,
         s.heldout_fit_before,
         s.heldout_fit_after,
         s.primary_channel,
         s.stack,
-        s.gap_shrink_stack_pct
+        figures::PRIMARY,
+        s.gap_shrink_stack_pct,
+        figures::WEIGHTED,
+        s.gap_shrink_stack_weighted_pct
     );
     println!("wrote {}/{{report.md, summary.json, *.png}}", args.out.display());
     Ok(())

@@ -3,7 +3,8 @@
 //! overlay on the held-out part).
 
 use super::residual::{Segment, CHANNELS};
-use super::{fit, regions, spectrum, Diagnosis};
+use super::figures::{PRIMARY, REMAINING, WEIGHTED};
+use super::{export, fit, regions, spectrum, Diagnosis};
 use crate::report::plots::{line_chart, Series};
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
@@ -13,6 +14,7 @@ use std::path::Path;
 pub fn write(d: &Diagnosis, dir: &Path) -> Result<()> {
     crate::report::write_summary(&d.summary, dir)?;
     plots(d, dir)?;
+    export::write(d, dir)?;
     std::fs::write(dir.join("report.md"), markdown(d))?;
     Ok(())
 }
@@ -184,19 +186,35 @@ fn markdown(d: &Diagnosis) -> String {
         s.samples, s.train_segments, s.heldout_segments, s.edge_samples_per_segment_end
     );
     let _ = writeln!(m, "- wall time {:.2} s\n", s.wall_s);
+    if !s.gates.is_empty() {
+        let _ = writeln!(m, "## Warnings (before any finding)\n");
+        for g in &s.gates {
+            let _ = writeln!(m, "- **{}**{}: {}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!(" ({c})")), g.message);
+        }
+        let _ = writeln!(m);
+    }
     let _ = writeln!(m, "## Verdict\n");
+    let _ = writeln!(m, "{}\n", s.verdict.headline);
     let _ = writeln!(
         m,
-        "Top effect: **{}**. Held-out gap shrinks **{:.1} %** with it (fit of the {} channel {:.1} % → {:.1} %); greedy stack {:?}: **{:.1} %** (fit {:.1} %).\n",
+        "Best-ranked library effect: {} — {PRIMARY} ({}) {:.1} %, {WEIGHTED} {:.1} % (fit of the {} channel {:.1} % → {:.1} %); greedy stack {:?}: {PRIMARY} {:.1} %, {WEIGHTED} {:.1} % (fit {:.1} %). {REMAINING}: {:.1} %.\n",
         s.top_effect.as_deref().unwrap_or("none"),
+        s.primary_channel,
         s.gap_shrink_pct,
+        s.gap_shrink_weighted_pct,
         s.primary_channel,
         s.heldout_fit_before,
         s.heldout_fit_after,
         s.stack,
         s.gap_shrink_stack_pct,
-        s.heldout_fit_after_stack
+        s.gap_shrink_stack_weighted_pct,
+        s.heldout_fit_after_stack,
+        s.verdict.remaining_gap_pct
     );
+    for (label, def) in &s.figure_definitions {
+        let _ = writeln!(m, "- *{label}*: {def}");
+    }
+    let _ = writeln!(m);
     if !s.indistinguishable.is_empty() {
         let _ = writeln!(
             m,
@@ -204,20 +222,85 @@ fn markdown(d: &Diagnosis) -> String {
             s.indistinguishable.iter().map(|(a, b)| format!("{a} ≈ {b}")).collect::<Vec<_>>().join(", ")
         );
     }
-    let _ = writeln!(m, "## Ranking (fitted on training, scored on held-out)\n");
+    if let Some(dz) = &s.disturbance {
+        let _ = writeln!(m, "## Disturbance effect (estimated as a signal)\n");
+        let _ = writeln!(
+            m,
+            "{}: threshold {:.0} σ chosen on training (cross-validated training shrink {:.1} %); on the held-out part {} change points (mean interval {:.2} s), levels median {:.3e}, max {:.3e} {}. With the stack: {PRIMARY} {:.1} %, {WEIGHTED} {:.1} % ({:+.1} points over the stack; {:.1} % of the stack's remainder). Levels cross-validated over alternate blocks of each interval.\n",
+            dz.model,
+            dz.threshold_sigma,
+            dz.train_cv_shrink_pct,
+            dz.heldout_change_points,
+            dz.mean_interval_s,
+            dz.median_abs_level,
+            dz.max_abs_level,
+            dz.level_unit,
+            dz.primary_shrink_pct,
+            dz.weighted_shrink_pct,
+            dz.over_stack_points,
+            dz.remainder_explained_pct
+        );
+        let _ = writeln!(
+            m,
+            "Its change points lie within {:.0} ms of a logged move, reference-acceleration or load change in {:.0} % of cases against {:.0} % by chance: {}\n",
+            1e3 * super::disturbance::LOCK_TOL_S,
+            dz.signal_locked_pct,
+            dz.chance_pct,
+            if dz.locked_to_signals {
+                "locked to the logged signals — a model error of the nominal, not an unmeasured force (not counted in the verdict)"
+            } else {
+                "not locked to the logged signals (events with their own clock, as an unmeasured force has)"
+            }
+        );
+        if !dz.change_times_s.is_empty() {
+            let _ = writeln!(
+                m,
+                "Change points (run, s): {}\n",
+                dz.change_times_s.iter().map(|(r, t)| format!("({r}, {t:.3})")).collect::<Vec<_>>().join(" ")
+            );
+        }
+    }
+    if !s.time_structure.is_empty() {
+        let _ = writeln!(m, "## Time structure of the held-out remainder (after the stack)\n");
+        let _ = writeln!(m, "| channel | character | change points | energy after them % | time share % | energy after move starts/stops % | time share % | steps explain % | dominant period s (ACF) | Ljung–Box p | slow share % | max input |ρ| |\n|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for t in &s.time_structure {
+            let best = t.input_correlation.iter().cloned().fold((String::new(), 0.0), |a, b| if b.1 > a.1 { b } else { a });
+            let _ = writeln!(
+                m,
+                "| {} | **{}** | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.2e} | {:.1} | {:.2} ({}) |",
+                t.channel,
+                t.character,
+                t.events_detected,
+                t.energy_after_events_pct,
+                t.time_after_events_pct,
+                t.energy_after_motion_pct,
+                t.time_after_motion_pct,
+                t.steps_explained_pct,
+                t.dominant_period_s.map_or("–".into(), |p| format!("{p:.3} ({:.2})", t.acf_at_period)),
+                t.ljung_box_p,
+                t.slow_share_pct,
+                best.1,
+                best.0
+            );
+        }
+        let _ = writeln!(m, "\nWindows: {:.0} ms before to {:.0} ms after each event. Event-locked averages, event lists and the residual series: summary.json, residual_<channel>.csv, residual_events_<channel>.png.\n", 1e3 * super::events::EVENT_BEFORE_S, 1e3 * super::events::EVENT_AFTER_S);
+    }
+    let _ = writeln!(m, "## Ranking (fitted on training, scored on held-out; shares of the gap)\n");
     let _ = writeln!(
         m,
-        "| # | effect | held-out gap shrink % | fit before % | fit after % | parameters | indistinguishable from |"
+        "| # | effect | {WEIGHTED} % | {PRIMARY} ({}) % | fit before % | fit after % | parameters | indistinguishable from |",
+        s.primary_channel
     );
-    let _ = writeln!(m, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|");
     for (k, r) in s.ranking.iter().enumerate() {
         let params: Vec<String> = r.params.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
         let _ = writeln!(
             m,
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {} | {} |",
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
             k + 1,
             r.effect,
-            r.heldout_gap_shrink_pct,
+            r.weighted_shrink_pct,
+            r.primary_shrink_pct,
             r.heldout_fit_before,
             r.heldout_fit_after,
             params.join(", "),
@@ -318,6 +401,6 @@ fn markdown(d: &Diagnosis) -> String {
             let _ = writeln!(m, "- {i}");
         }
     }
-    let _ = writeln!(m, "\nPlots: residual_time.png, heatmap.png, spectrum.png, overlay.png.");
+    let _ = writeln!(m, "\nPlots: residual_time.png, heatmap.png, spectrum.png, overlay.png, residual_events_<channel>.png; series: residual_<channel>.csv.");
     m
 }

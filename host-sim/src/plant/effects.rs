@@ -20,7 +20,7 @@
 //! | inverter dead time | each inverter leg | phase voltage `− V_dt tanh(i_x/i_ε)`, `V_dt = t_dt f_pwm V_bus` |
 //! | current-sensor gain and offset | phase-current sensing | `i_meas = (1 + g) i + o_abc` (`o_abc`: inverse Clarke of `(o_α, o_β)`) |
 //! | encoder eccentricity | encoder reading | `θ_meas = θ + e_s sin θ + e_c cos θ` |
-//! | external load offset / disturbance | rod, unmeasured | `ΔF + A sin(2π f t)` |
+//! | external load offset / disturbance | rod, unmeasured | `ΔF + A sin(2π f t)`, or `ΔF + A Σ pulses(t)` |
 //!
 //! The lead error changes the screw's transmission ratio `dx_s/dθ_s` too;
 //! by virtual work the nut force reaches the screw as `(dx_s/dθ_s) F`, so
@@ -79,6 +79,11 @@ pub struct UnmodelledEffects {
     pub load_offset_n: f64,
     pub load_disturbance_n: f64,
     pub load_disturbance_hz: f64,
+    /// Instead of the sinusoid: an unmeasured force with its own time
+    /// course, `A × Σ level_k` over the pulses `[start_s, duration_s,
+    /// level_k]` active at t (plant time) — steps (long pulses) and short
+    /// repeated events. Used only when `load_disturbance_n` ≠ 0.
+    pub load_pulses: Vec<[f64; 3]>,
 }
 
 /// Phase current below which the dead-time error fades (`tanh(i/i_ε)`):
@@ -146,6 +151,10 @@ impl UnmodelledEffects {
     pub fn load_disturbance(&self, t: f64) -> f64 {
         if self.load_disturbance_n == 0.0 {
             return 0.0;
+        }
+        if !self.load_pulses.is_empty() {
+            let on = |p: &[f64; 3]| t >= p[0] && t < p[0] + p[1];
+            return self.load_disturbance_n * self.load_pulses.iter().filter(|p| on(p)).map(|p| p[2]).sum::<f64>();
         }
         self.load_disturbance_n * (std::f64::consts::TAU * self.load_disturbance_hz * t).sin()
     }

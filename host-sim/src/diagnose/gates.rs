@@ -1,0 +1,174 @@
+//! Baseline gates (issue 13 §4): checks on the nominal and on the data
+//! that come before any finding, each with its figures.
+
+use super::log::Log;
+use super::residual::{Nominal, Segment, CHANNELS, NCH, TORQUE};
+use super::summary::NotRanked;
+
+/// Training Fit % of a channel below which the nominal "explains the
+/// training data poorly". On the truth rigs of the full plant the nominal
+/// reaches 75–99 % (torque, voltage) and 40–80 % (position, a few µm of
+/// deflection against a µm floor); a log against the wrong rig falls far
+/// below, and a negative Fit means the nominal is worse than the mean.
+pub const NOMINAL_FIT_MIN_PCT: [f64; NCH] = [50.0, 0.0, 50.0];
+
+/// Held-out Fit % this many points below the training Fit %: the held-out
+/// run is not like the training run (another load, rig state or an event
+/// the training part did not have).
+pub const HELDOUT_DROP_POINTS: f64 = 20.0;
+
+/// The logged torque against the torque the rig's physics needs, as the
+/// least-squares scale `a` in `K_t i ≈ a · T_nominal`: outside `1 ± this`
+/// the torque constant, lead or inertia of the rig file do not match the
+/// log (a current-sensor gain error of a calibrated drive is a few %).
+pub const TORQUE_SCALE_TOLERANCE: f64 = 0.2;
+
+/// Implausible library fits (`plausible`) from this many effects mean the
+/// log does not match the rig's physics, not that the rig has them all.
+pub const IMPLAUSIBLE_FITS_MISMATCH: usize = 2;
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Gate {
+    /// `nominal_poor_fit`, `physics_mismatch`, `implausible_fits`, `heldout_drop`,
+    /// `heldout_is_training`, `training_is_reference`, `heldout_is_reference`.
+    pub kind: String,
+    pub channel: Option<String>,
+    pub message: String,
+    /// The figure the gate fired on (Fit %, scale, count).
+    pub figure: f64,
+}
+
+/// Gates after which no cause is named: the rig's physics does not fit
+/// the log (torque scale off, or a channel worse than its mean).
+pub fn baseline_broken(g: &Gate) -> bool {
+    g.kind == "physics_mismatch" || (g.kind == "nominal_poor_fit" && g.figure < 0.0)
+}
+
+/// Whether two logs carry the same data (every common column equal to
+/// 1e-12 relative, at least two columns in common).
+pub fn same_data(a: &Log, b: &Log) -> bool {
+    if a.len() != b.len() || a.is_empty() {
+        return false;
+    }
+    let common: Vec<&String> = a.columns.keys().filter(|k| b.columns.contains_key(*k)).collect();
+    common.len() >= 2
+        && common.iter().all(|k| {
+            a.columns[*k].iter().zip(&b.columns[*k]).all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(y.abs()).max(1e-300) || (x.is_nan() && y.is_nan()))
+        })
+}
+
+/// Identity gates between training, held-out and reference logs.
+pub fn identity(log: &Log, heldout: Option<&Log>, reference: Option<&Log>) -> Vec<Gate> {
+    let mut out = Vec::new();
+    let g = |kind: &str, message: String| Gate { kind: kind.into(), channel: None, message, figure: 1.0 };
+    if let Some(h) = heldout {
+        if same_data(log, h) {
+            out.push(g("heldout_is_training", format!(
+                "the held-out log `{}` carries the same data as the training log `{}`: every held-out figure is a training figure, so over-fitting and run-to-run change are not ruled out; no effect is named",
+                h.source, log.source
+            )));
+        }
+        if let Some(r) = reference {
+            if same_data(h, r) {
+                out.push(g("heldout_is_reference", format!(
+                    "the held-out log `{}` is the reference `{}`: the nominal was fitted on it, so the held-out gap is the regression's own misfit and no effect can show; no effect is named",
+                    h.source, r.source
+                )));
+            }
+        }
+    }
+    if let Some(r) = reference {
+        if same_data(log, r) {
+            out.push(g("training_is_reference", format!(
+                "the training log `{}` is the reference `{}`: the nominal was fitted on this very data, so nothing can differ from it and nothing can be found; no effect is named",
+                log.source, r.source
+            )));
+        }
+    }
+    out
+}
+
+/// Fit gates: the nominal on training, held-out against training, the
+/// torque scale, and the count of implausible fits.
+pub fn fit_gates(
+    train: &[&Segment],
+    fit_train: &[Option<f64>; NCH],
+    fit_held: &[Option<f64>; NCH],
+    nominal: &Nominal,
+    not_ranked: &[NotRanked],
+    unit: &dyn Fn(usize) -> &'static str,
+) -> Vec<Gate> {
+    let mut out = Vec::new();
+    for c in 0..NCH {
+        let (Some(ft), Some(fh)) = (fit_train[c], fit_held[c]) else { continue };
+        if ft < NOMINAL_FIT_MIN_PCT[c] {
+            out.push(Gate {
+                kind: "nominal_poor_fit".into(),
+                channel: Some(CHANNELS[c].into()),
+                message: format!(
+                    "the nominal explains the {} channel ({}) poorly on the training data: Fit {ft:.1} % (gate {:.0} %){}; findings in this channel are relative to a poor baseline",
+                    CHANNELS[c],
+                    unit(c),
+                    NOMINAL_FIT_MIN_PCT[c],
+                    if ft < 0.0 { ", worse than the signal's mean: the rig's physics cannot fit this channel" } else { "" }
+                ),
+                figure: ft,
+            });
+        }
+        if ft - fh > HELDOUT_DROP_POINTS {
+            out.push(Gate {
+                kind: "heldout_drop".into(),
+                channel: Some(CHANNELS[c].into()),
+                message: format!(
+                    "held-out Fit of the {} channel is {:.1} points below training ({ft:.1} → {fh:.1} %): the held-out run holds something the training run does not (another load or rig state, or events); a library effect fitted on training cannot explain it",
+                    CHANNELS[c],
+                    ft - fh
+                ),
+                figure: ft - fh,
+            });
+        }
+    }
+    if let Nominal::Physics(_) = nominal {
+        // K_t i = y, nominal torque = y − r: least-squares scale, weighted.
+        let (mut ym, mut mm) = (0.0, 0.0);
+        for s in train {
+            if let (Some(y), Some(r)) = (&s.y[TORQUE], &s.r[TORQUE]) {
+                for i in 0..y.len() {
+                    let w2 = s.weight(TORQUE, i).powi(2);
+                    let m = y[i] - r[i];
+                    ym += w2 * y[i] * m;
+                    mm += w2 * m * m;
+                }
+            }
+        }
+        if mm > 0.0 {
+            let a = ym / mm;
+            if (a - 1.0).abs() > TORQUE_SCALE_TOLERANCE {
+                out.push(Gate {
+                    kind: "physics_mismatch".into(),
+                    channel: Some("torque".into()),
+                    message: format!(
+                        "the logged torque (K_t i_q) is {a:.2} × what the rig's physics needs for the logged motion and load (tolerance ±{:.0} %): the rig file's torque constant, lead, inertia or mass do not match this log",
+                        100.0 * TORQUE_SCALE_TOLERANCE
+                    ),
+                    figure: a,
+                });
+            }
+        }
+    }
+    let implausible: Vec<String> =
+        not_ranked.iter().filter(|n| n.status == "implausible").map(|n| format!("{} ({})", n.effect, n.reason)).collect();
+    if implausible.len() >= IMPLAUSIBLE_FITS_MISMATCH {
+        out.push(Gate {
+            kind: "implausible_fits".into(),
+            channel: None,
+            message: format!(
+                "{} library effects fit physically implausible parameters — the log does not match the rig's physics as described: {}",
+                implausible.len(),
+                implausible.join("; ")
+            ),
+            figure: implausible.len() as f64,
+        });
+    }
+    out
+}

@@ -1,0 +1,256 @@
+//! Open-world suite (issue 13 §6): truth rigs whose effect the ranked
+//! library does not hold — each library effect held out in turn, and
+//! effects the library never had (unmeasured force steps and pulses,
+//! sensor delay, structural resonance, torque-constant drop with
+//! temperature, current saturation, encoder miscount burst) — plus the
+//! nominal rig, and the nominal rig diagnosed against a mismatched rig
+//! file. Confusion: named right / disturbance-modelled / honestly
+//! unexplained / wrong.
+//!
+//! CI runs `open_world_sample` (5 cases). The full suite writes
+//! `target/diagnose_suite/open/{suite.json,report.md}`:
+//! `cargo test --release --test diagnose_open -- --ignored --nocapture`.
+
+mod diagnose_support;
+
+use diagnose_support::open::{
+    library_characters, library_logs, mismatched_rig, nominal_logs, novel_logs, Logs, Novel, NOVEL,
+};
+use diagnose_support::truth::nominal_rig;
+use host_sim::diagnose::effects::{Effect, ALL};
+use host_sim::diagnose::events;
+use host_sim::diagnose::residual::{Nominal, Physics, CHANNELS};
+use host_sim::diagnose::{diagnose_with, Options};
+use std::fmt::Write as _;
+
+#[derive(Clone, Copy, Debug)]
+enum Spec {
+    HeldOut(Effect, u64),
+    Novel(Novel, u64),
+    Nominal(u64),
+    Mismatched(u64),
+}
+
+#[derive(Debug, serde::Serialize)]
+struct Outcome {
+    case: String,
+    family: &'static str,
+    category: &'static str,
+    verdict: String,
+    cause: Option<String>,
+    headline: String,
+    top_effect: Option<String>,
+    explained_pct: f64,
+    remaining_gap_pct: f64,
+    primary_channel: String,
+    disturbance_weighted_pct: f64,
+    disturbance_primary_pct: f64,
+    disturbance_change_points: usize,
+    character: String,
+    character_ok: Option<bool>,
+    event_share_reported_pct: Option<f64>,
+    event_share_truth_pct: Option<f64>,
+    gates: Vec<String>,
+    top_halves: Option<(f64, f64, f64)>,
+    disturbance_locked_to_signals: Option<bool>,
+    disturbance_signal_locked_vs_chance_pct: Option<(f64, f64)>,
+    wall_s: f64,
+}
+
+fn run_case(spec: Spec) -> Outcome {
+    let t0 = std::time::Instant::now();
+    let rig = nominal_rig();
+    let (name, family, logs, diag_rig, library, chars): (String, &str, Logs, _, Vec<Effect>, Option<&[&str]>) = match spec {
+        Spec::HeldOut(e, seed) => (
+            format!("held out: {}", e.name()),
+            "held_out_library",
+            library_logs(&rig, e, 50_000 + seed),
+            rig.clone(),
+            ALL.iter().copied().filter(|x| *x != e).collect(),
+            Some(library_characters(e)),
+        ),
+        Spec::Novel(n, seed) => {
+            (n.name().to_string(), "novel", novel_logs(&rig, n, 60_000 + seed), rig.clone(), ALL.to_vec(), Some(n.characters()))
+        }
+        Spec::Nominal(seed) => ("nominal rig".into(), "nominal", nominal_logs(&rig, 70_000 + seed), rig.clone(), ALL.to_vec(), None),
+        Spec::Mismatched(seed) => (
+            "nominal rig vs mismatched rig file".into(),
+            "mismatched",
+            nominal_logs(&rig, 80_000 + seed),
+            mismatched_rig(&rig),
+            ALL.to_vec(),
+            None,
+        ),
+    };
+    let p = Physics::from_rig(&diag_rig);
+    let d = diagnose_with(&logs.train, Some(&logs.held), None, Nominal::Physics(p.clone()), p.tilt_deg, &Options { library })
+        .expect("diagnosis");
+    let s = &d.summary;
+    let v = &s.verdict;
+    let category = match v.kind.as_str() {
+        // The truth is never in the ranked library here: any cause is wrong.
+        "library_effect" => "wrong",
+        "disturbance" => "disturbance_modelled",
+        _ => "honestly_unexplained",
+    };
+    let primary = CHANNELS.iter().position(|c| *c == s.primary_channel).unwrap_or(0);
+    let ts = s.time_structure.iter().find(|t| t.channel == s.primary_channel);
+    let (rep, tru) = if logs.held_events_s.is_empty() {
+        (None, None)
+    } else {
+        let held = d.heldout();
+        let rem = d.heldout_remainder();
+        let ev = events::events_at(&held, &logs.held_events_s);
+        let (e, _) = events::share_after(&held, &rem, primary, &ev, events::EVENT_BEFORE_S, events::EVENT_AFTER_S);
+        (ts.map(|t| t.energy_after_events_pct), Some(e))
+    };
+    let character = v.remainder_character.clone();
+    Outcome {
+        case: name,
+        family,
+        category,
+        verdict: v.kind.clone(),
+        cause: v.cause.clone(),
+        headline: v.headline.clone(),
+        top_effect: s.top_effect.clone(),
+        explained_pct: v.explained_pct,
+        remaining_gap_pct: v.remaining_gap_pct,
+        primary_channel: s.primary_channel.clone(),
+        disturbance_weighted_pct: s.disturbance.as_ref().map_or(0.0, |x| x.weighted_shrink_pct),
+        disturbance_primary_pct: s.disturbance.as_ref().map_or(0.0, |x| x.primary_shrink_pct),
+        disturbance_change_points: s.disturbance.as_ref().map_or(0, |x| x.heldout_change_points),
+        character_ok: (category == "honestly_unexplained").then(|| chars.is_some_and(|c| c.contains(&character.as_str()))),
+        character,
+        event_share_reported_pct: rep,
+        event_share_truth_pct: tru,
+        gates: s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect(),
+        top_halves: s.top_halves_primary_shrink_pct,
+        disturbance_locked_to_signals: s.disturbance.as_ref().map(|x| x.locked_to_signals),
+        disturbance_signal_locked_vs_chance_pct: s.disturbance.as_ref().map(|x| (x.signal_locked_pct, x.chance_pct)),
+        wall_s: t0.elapsed().as_secs_f64(),
+    }
+}
+
+fn pct(a: usize, b: usize) -> f64 {
+    if b == 0 {
+        f64::NAN
+    } else {
+        100.0 * a as f64 / b as f64
+    }
+}
+
+/// Runs the cases, writes report.md and suite.json into `dir`, returns the
+/// outcomes and the figures.
+fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
+    let t0 = std::time::Instant::now();
+    let out: Vec<Outcome> = specs.iter().map(|s| run_case(*s)).collect();
+    let n = out.len();
+    let count = |c: &str| out.iter().filter(|o| o.category == c).count();
+    let force: Vec<&Outcome> = out.iter().filter(|o| o.case.starts_with("force_")).collect();
+    let force_ok = force.iter().filter(|o| o.disturbance_weighted_pct >= 70.0).count();
+    // The nominal and mismatched cases have no true character to name.
+    let unexpl: Vec<&Outcome> =
+        out.iter().filter(|o| o.character_ok.is_some() && matches!(o.family, "novel" | "held_out_library")).collect();
+    let char_ok = unexpl.iter().filter(|o| o.character_ok == Some(true)).count();
+    // Event-locked gaps: short force pulses (the energy sits after them).
+    // Steps and the miscount leave a lasting offset, not an event-locked
+    // gap; their shares are listed in the outcomes for reference.
+    let ev: Vec<(f64, f64)> = out
+        .iter()
+        .filter(|o| o.case.starts_with("force_pulses"))
+        .filter_map(|o| Some((o.event_share_reported_pct?, o.event_share_truth_pct?)))
+        .collect();
+    let ev_ok = ev.iter().filter(|(a, b)| (a - b).abs() <= 10.0).count();
+    let mism: Vec<&Outcome> = out.iter().filter(|o| o.family == "mismatched").collect();
+    let mism_gated = mism.iter().filter(|o| o.gates.iter().any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))).count();
+    let figures = serde_json::json!({
+        "cases": n,
+        "confusion": {
+            "named_right": 0,
+            "disturbance_modelled": count("disturbance_modelled"),
+            "honestly_unexplained": count("honestly_unexplained"),
+            "wrong": count("wrong"),
+        },
+        "wrong_library_effect_named_pct": pct(count("wrong"), n),
+        "force_cases": force.len(),
+        "force_disturbance_weighted_shrink_ge_70": force_ok,
+        "force_disturbance_weighted_shrink_pct": force.iter().map(|o| o.disturbance_weighted_pct).collect::<Vec<_>>(),
+        "force_disturbance_primary_shrink_pct": force.iter().map(|o| o.disturbance_primary_pct).collect::<Vec<_>>(),
+        "unexplained_cases": unexpl.len(),
+        "unexplained_character_named_right_pct": pct(char_ok, unexpl.len()),
+        "event_share_cases": ev.len(),
+        "event_share_within_10_points": ev_ok,
+        "event_share_reported_vs_truth_pct": ev,
+        "mismatched_cases_gated": format!("{mism_gated}/{}", mism.len()),
+        "wall_s": t0.elapsed().as_secs_f64(),
+        "outcomes": &out,
+    });
+    let mut rep = String::from("# Open-world suite\n\n");
+    let _ = writeln!(rep, "{n} cases, wall {:.1} s. Confusion: named right 0 (the truth is never in the ranked library), disturbance-modelled {}, honestly unexplained {}, wrong {} ({:.1} %).\n", t0.elapsed().as_secs_f64(), count("disturbance_modelled"), count("honestly_unexplained"), count("wrong"), pct(count("wrong"), n));
+    let _ = writeln!(rep, "| case | category | verdict | top (closed-world) | explained % | disturbance weighted / primary % | change points | character (ok?) | event share reported / truth % | gates |\n|---|---|---|---|---|---|---|---|---|---|");
+    for o in &out {
+        let _ = writeln!(
+            rep,
+            "| {} | {} | {}{} | {} | {:.1} | {:.1} / {:.1} | {} | {} ({}) | {} | {} |",
+            o.case,
+            o.category,
+            o.verdict,
+            o.cause.as_ref().map_or(String::new(), |c| format!(": {c}")),
+            o.top_effect.as_deref().unwrap_or("none"),
+            o.explained_pct,
+            o.disturbance_weighted_pct,
+            o.disturbance_primary_pct,
+            o.disturbance_change_points,
+            o.character,
+            o.character_ok.map_or("–", |b| if b { "yes" } else { "no" }),
+            match (o.event_share_reported_pct, o.event_share_truth_pct) {
+                (Some(a), Some(b)) => format!("{a:.1} / {b:.1}"),
+                _ => "–".into(),
+            },
+            o.gates.join(", ")
+        );
+    }
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite").join(dir_name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("report.md"), &rep).unwrap();
+    std::fs::write(dir.join("suite.json"), serde_json::to_string_pretty(&figures).unwrap()).unwrap();
+    println!("{rep}");
+    (out, figures)
+}
+
+#[test]
+fn open_world_sample() {
+    let specs = [
+        Spec::Novel(Novel::ForcePulses, 0),
+        Spec::Novel(Novel::StructuralResonance, 0),
+        Spec::HeldOut(Effect::LoadOffset, 0),
+        Spec::Nominal(0),
+        Spec::Mismatched(0),
+    ];
+    let (out, _) = suite(&specs, "open_sample");
+    for o in &out {
+        assert_ne!(o.category, "wrong", "{}: a library effect named as the cause: {}", o.case, o.headline);
+    }
+    let pulses = &out[0];
+    assert_eq!(pulses.category, "disturbance_modelled", "{}", pulses.headline);
+    let (rep, tru) = (pulses.event_share_reported_pct.unwrap(), pulses.event_share_truth_pct.unwrap());
+    assert!((rep - tru).abs() <= 15.0, "event share reported {rep:.1} % vs truth {tru:.1} %");
+    assert!(out[3].verdict != "disturbance" && out[3].cause.is_none(), "nominal rig: {}", out[3].headline);
+    assert!(
+        out[4].gates.iter().any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit")),
+        "mismatched rig file not flagged: {:?}",
+        out[4].gates
+    );
+}
+
+#[test]
+#[ignore = "full open-world suite (≈ 2 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
+fn open_world_suite() {
+    let mut specs: Vec<Spec> = ALL.iter().map(|e| Spec::HeldOut(*e, 0)).collect();
+    for rep in 0..2 {
+        specs.extend(NOVEL.iter().map(|n| Spec::Novel(*n, rep)));
+        specs.push(Spec::Nominal(rep));
+        specs.push(Spec::Mismatched(rep));
+    }
+    suite(&specs, "open");
+}
