@@ -208,7 +208,12 @@ fn main() -> ! {
     // ---- Controller::step in closed loop ---------------------------------
     let (mut cur, mut spd, mut pos, mut off) =
         (Stats::new(), Stats::new(), Stats::new(), Stats::new());
-    let mut c = Controller::new(p.commissioned());
+    // As the golden closed loop: the rigid plant carries no load and has
+    // no brake (a hold current preloaded into it would spin it).
+    let mut bench = p.commissioned();
+    bench.startup.expected_load_force_n = 0.0;
+    bench.brake.fitted = false;
+    let mut c = Controller::new(bench);
     let mut plant = RigidPlant::new(p, 48.0);
     let mut noise = Noise::new(7);
     let mut out = PwmCommand::OFF;

@@ -106,6 +106,9 @@ impl Controller {
         if self.mode == Mode::Homing && !self.homing_backing_off {
             return self.homing_reference();
         }
+        if self.stream.active() {
+            return self.stream_reference();
+        }
         let t = self.move_time_s();
         self.move_ticks = self.move_ticks.saturating_add(1);
         let scale = self.move_time_scale;
@@ -116,6 +119,26 @@ impl Controller {
             self.move_lag_s += (1.0 - scale) * self.derived.position_period_s;
             r.velocity_m_s *= scale;
             r.acceleration_m_s2 *= scale * scale;
+        }
+        r
+    }
+
+    /// One streamed period: the interpolated setpoints, or a controlled stop
+    /// once they stopped arriving.
+    #[inline(never)]
+    fn stream_reference(&mut self) -> TrajectorySample {
+        if self.stream.since_ticks() > self.derived.stream_timeout_ticks {
+            let here = self.position_reference_m;
+            self.raise(FaultSet::STREAM_TIMEOUT);
+            return TrajectorySample { position_m: here, velocity_m_s: 0.0, acceleration_m_s2: 0.0 };
+        }
+        let mut r = self.stream.advance(self.derived.position_period_s);
+        let a_max = self.params.trajectory.max_acceleration_m_s2;
+        if r.acceleration_m_s2.abs() > a_max {
+            // Setpoints closer in time than their velocities allow: the
+            // feedforward is bounded (the position loop takes the rest).
+            r.acceleration_m_s2 = a_max.copysign(r.acceleration_m_s2);
+            self.limits.insert(LimitFlags::SPEED);
         }
         r
     }
@@ -180,6 +203,11 @@ impl Controller {
         }
         self.bound_regeneration();
         self.friction_ff_n_m = friction_feedforward_n_m(&self.params, r.velocity_m_s, self.load.slow_force_n());
+        if self.stream.active() {
+            // A streamed force feedforward: the load the platform expects,
+            // as torque at the screw.
+            self.friction_ff_n_m += self.stream.force_n() * self.params.metres_per_rad();
+        }
         let inertial_n = self.params.drive_train.moving_mass_kg * r.acceleration_m_s2;
         let dt = self.derived.position_period_s;
         match s.load_cell_force_n {

@@ -76,6 +76,7 @@ impl Controller {
         self.compensator.set_enabled(false);
         self.compensator.reset();
         self.homing_backing_off = false;
+        self.stream.stop();
         self.mode = Mode::Stopping;
     }
 

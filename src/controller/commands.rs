@@ -4,7 +4,7 @@
 use super::Controller;
 use crate::foc::Dq;
 use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
-use crate::motion::{ScurveMove, StopRamp};
+use crate::motion::{ScurveMove, Setpoint, StopRamp};
 use crate::protection::{clamp_to_stroke, FaultSet, LimitFlags};
 use crate::telemetry::Mode;
 
@@ -20,6 +20,15 @@ pub enum Command {
     /// Plan a jerk-limited move from the present command to `position_m`.
     /// Needs homing.
     MoveTo { position_m: f32 },
+    /// One setpoint of a stream (a platform controller at 100 Hz–1 kHz):
+    /// position, velocity and an optional feedforward force (N, positive
+    /// opposing extension). Interpolated at the position-loop rate; no
+    /// setpoint for `stream.timeout_s` ends in a controlled stop. Needs
+    /// homing; the position is bounded by the stroke, the velocity by
+    /// `trajectory.max_velocity_m_s`, both reported.
+    Stream { position_m: f32, velocity_m_s: f32, force_n: Option<f32> },
+    /// Ends a stream: the drive holds where the reference rests.
+    StreamEnd,
     /// Move by `distance_m` at no more than `homing.jog_speed_max_m_s`: the
     /// only motion a drive that is not homed may make.
     Jog { distance_m: f32 },
@@ -98,6 +107,7 @@ impl Controller {
             Command::Enable => self.enable(),
             Command::Disable => {
                 self.start_up_sequence = false;
+                self.stream.stop();
                 if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Homing | Mode::Preloading) {
                     // Stop, let the brake close under the loops, then switch off.
                     let v = self.speed_rad_s() * self.params.metres_per_rad();
@@ -131,6 +141,16 @@ impl Controller {
                 } else {
                     Ok(CommandOutcome::Accepted)
                 }
+            }
+            Command::Stream { position_m, velocity_m_s, force_n } => self.stream_setpoint(position_m, velocity_m_s, force_n),
+            Command::StreamEnd => {
+                if self.stream.active() {
+                    let here = self.position_reference_m;
+                    self.stream.stop();
+                    self.trajectory = ScurveMove::hold(here);
+                    self.restart_move();
+                }
+                Ok(CommandOutcome::Accepted)
             }
             Command::Jog { distance_m } => {
                 if !distance_m.is_finite() {
@@ -286,6 +306,41 @@ impl Controller {
         Ok(CommandOutcome::Accepted)
     }
 
+    /// `Stream`: bounded, reported, handed to the interpolator.
+    fn stream_setpoint(&mut self, position_m: f32, velocity_m_s: f32, force_n: Option<f32>) -> Result<CommandOutcome, CommandError> {
+        let force_n = force_n.unwrap_or(0.0);
+        if !(position_m.is_finite() && velocity_m_s.is_finite() && force_n.is_finite()) {
+            return Err(CommandError::NotFinite);
+        }
+        if !self.readiness.contains(Readiness::COMMUTATED) {
+            return Err(CommandError::NotCommutated);
+        }
+        if !self.readiness.contains(Readiness::HOMED) {
+            return Err(CommandError::NotHomed);
+        }
+        if self.mode != Mode::Running {
+            return Err(CommandError::NotRunning);
+        }
+        if !self.stream.active() && self.move_in_progress() {
+            return Err(CommandError::Busy);
+        }
+        let l = &self.params.limits;
+        let (position_m, clamped) = clamp_to_stroke(position_m, l.stroke_min_m, l.stroke_max_m);
+        let v_max = self.params.trajectory.max_velocity_m_s;
+        let velocity = crate::math::clamp(velocity_m_s, -v_max, v_max);
+        if velocity != velocity_m_s {
+            self.pending_limits.insert(LimitFlags::SPEED);
+        }
+        let here = Setpoint { position_m: self.position_reference_m, velocity_m_s: 0.0 };
+        let max = self.derived.stream_max_ticks;
+        self.stream.push(Setpoint { position_m, velocity_m_s: velocity }, force_n, here, max, max, self.derived.position_period_s);
+        if clamped {
+            self.pending_limits.insert(LimitFlags::STROKE);
+            return Ok(CommandOutcome::ClampedToStroke { position_m });
+        }
+        Ok(CommandOutcome::Accepted)
+    }
+
     /// Refused unless the drive is off with nothing latched.
     fn check_idle(&self) -> Result<(), CommandError> {
         if !self.faults.is_empty() {
@@ -319,6 +374,7 @@ impl Controller {
 
     pub(super) fn begin_homing(&mut self) {
         self.hold_here();
+        self.stream.stop();
         self.homing = Homing::new(self.motor_position_m());
         self.homing_backing_off = false;
         self.mode = Mode::Homing;

@@ -22,7 +22,7 @@ use crate::foc::{CurrentLoop, Dq};
 use crate::io::{PwmCommand, SensorSample};
 use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
 use crate::load_estimate::LoadEstimator;
-use crate::motion::{EncoderTracker, ScurveMove, SpeedLoop, StopRamp};
+use crate::motion::{EncoderTracker, ScurveMove, SetpointStream, SpeedLoop, StopRamp};
 use crate::params::{ControlParams, ParamError, ValidatedParams};
 use crate::protection::{EmfWatch, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
@@ -54,6 +54,10 @@ struct Derived {
     /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
     short_circuit_speed_max_rad_s: f32,
     speed_ticks_per_position_tick: u32,
+    /// Streamed setpoints: the longest interpolation interval and the
+    /// timeout, in position periods.
+    stream_max_ticks: u32,
+    stream_timeout_ticks: u32,
 }
 
 impl Derived {
@@ -76,6 +80,8 @@ impl Derived {
             short_circuit_speed_max_rad_s: short_circuit_speed_max_rad_s(p),
             // Validated: a non-zero multiple of the speed divider.
             speed_ticks_per_position_tick: p.rates.position_loop_divider.checked_div(p.rates.speed_loop_divider).unwrap_or(1),
+            stream_max_ticks: periods(p.stream.period_max_s, p.position_period_s()),
+            stream_timeout_ticks: periods(p.stream.timeout_s, p.position_period_s()),
         }
     }
 }
@@ -101,10 +107,13 @@ fn periods(duration_s: f32, period_s: f32) -> u32 {
 }
 
 /// The whole drive state. `step` is the only thing the ISR calls.
+// `repr(C)`: declaration order is layout order. The fields every PWM period
+// reads come first, then the derived constants and the parameters, so they
+// stay within the reach of the FPU loads' offsets (1020 bytes) from the
+// controller's base; what the outer rates and the start-up steps use follows.
 #[derive(Debug)]
+#[repr(C)]
 pub struct Controller {
-    params: ControlParams,
-    derived: Derived,
     mode: Mode,
     faults: FaultSet,
     /// Conditions present at the last step, latched or not: a fault clears
@@ -117,11 +126,39 @@ pub struct Controller {
     speed_countdown: u32,
     position_countdown: u32,
     encoder: EncoderTracker,
+    current_loop: CurrentLoop,
+    current_reference: Dq,
+    current_dq: Dq,
+    voltage_dq: Dq,
+    limits: LimitFlags,
+    /// Consecutive periods with |i_a + i_b + i_c| over its bound.
+    current_sum_count: u32,
+    /// Periods of active short circuit left after a bridge-off fault.
+    short_circuit_periods: u32,
+    bus_voltage_v: f32,
+    terminal_position_m: Option<f32>,
+    speed_reference_rad_s: f32,
+    acceleration_reference_rad_s2: f32,
+    /// Coulomb friction fed forward to the speed loop, from the position period.
+    friction_ff_n_m: f32,
+    speed_loop: SpeedLoop,
+    /// The q-current bound the speed loop had last (thermal and power-stage
+    /// foldback, the d-current taken off the current circle), before the
+    /// anti-windup and homing narrow it: what the motor could give.
+    q_current_limit_a: f32,
+    /// PWM periods since the brake was told to open (Running, Stopping) or
+    /// to close (Braking, once the stop ramp is at rest).
+    brake_periods: u32,
+    open_phase: OpenPhaseMonitor,
+    /// The open-phase check's last verdict (it keeps it through windows
+    /// that cannot judge).
+    open_phase_present: bool,
+    thermal: ThermalModel,
+    derived: Derived,
+    params: ControlParams,
     /// User position of encoder count zero (`SetHome`, homing). Kept apart
     /// from the count, which the electrical angle is taken from.
     home_offset_m: f32,
-    current_loop: CurrentLoop,
-    speed_loop: SpeedLoop,
     trajectory: ScurveMove,
     move_ticks: u32,
     /// How far the move's clock was held back (regeneration bound), s.
@@ -139,22 +176,11 @@ pub struct Controller {
     applied_shift_m: f32,
     position_command_m: f32,
     position_reference_m: f32,
-    speed_reference_rad_s: f32,
-    acceleration_reference_rad_s2: f32,
-    /// Coulomb friction fed forward to the speed loop, from the position period.
-    friction_ff_n_m: f32,
-    current_reference: Dq,
-    current_dq: Dq,
-    voltage_dq: Dq,
-    limits: LimitFlags,
     /// A clamped MoveTo is reported until the next telemetry record is cut.
     pending_limits: LimitFlags,
     load: LoadEstimator,
-    thermal: ThermalModel,
     /// The controlled stop in progress (mode `Stopping`).
     stop: StopRamp,
-    /// Consecutive periods with |i_a + i_b + i_c| over its bound.
-    current_sum_count: u32,
     /// How long |ω_ref − ω| has been over its threshold.
     speed_error_s: f32,
     /// How long the encoder has shown no count while told to turn.
@@ -162,24 +188,9 @@ pub struct Controller {
     /// The back-EMF's direction in the current loop's frame (lost encoder).
     emf_watch: EmfWatch,
     count_at_last_speed_tick: i32,
-    /// The q-current bound the speed loop had last (thermal and power-stage
-    /// foldback, the d-current taken off the current circle), before the
-    /// anti-windup and homing narrow it: what the motor could give.
-    q_current_limit_a: f32,
-    open_phase: OpenPhaseMonitor,
-    /// The open-phase check's last verdict (it keeps it through windows
-    /// that cannot judge).
-    open_phase_present: bool,
-    /// Periods of active short circuit left after a bridge-off fault.
-    short_circuit_periods: u32,
-    /// PWM periods since the brake was told to open (Running, Stopping) or
-    /// to close (Braking, once the stop ramp is at rest).
-    brake_periods: u32,
     /// q current that held the load when the brake last closed, or that the
     /// commutation measured: `Enable` builds it before the brake lets go.
     hold_current_q_a: f32,
-    bus_voltage_v: f32,
-    terminal_position_m: Option<f32>,
     home_switch: Option<bool>,
     power_stage_temperature_c: Option<f32>,
     // ---- start-up steps (`lifecycle.rs`) ----
@@ -193,6 +204,8 @@ pub struct Controller {
     /// Homing found its reference and is backing off to the stroke.
     homing_backing_off: bool,
     telemetry: Telemetry,
+    /// Streamed setpoints (`Command::Stream`), when a stream is running.
+    stream: SetpointStream,
 }
 
 impl Controller {
@@ -292,6 +305,7 @@ impl Controller {
             homing: Homing::new(0.0),
             homing_backing_off: false,
             telemetry: Telemetry::default(),
+            stream: SetpointStream::default(),
             params,
         }
     }
@@ -344,9 +358,9 @@ impl Controller {
         crate::foc::wrap_pi(self.rotor_state().electrical_angle_rad)
     }
 
-    /// True while a planned move has time left.
+    /// True while a planned move has time left or a stream runs.
     pub fn move_in_progress(&self) -> bool {
-        self.move_time_s() < self.trajectory.duration_s()
+        self.stream.active() || self.move_time_s() < self.trajectory.duration_s()
     }
 
     /// Time into the present move (its clock, held back while regeneration

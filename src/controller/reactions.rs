@@ -107,6 +107,7 @@ impl Controller {
     #[inline(never)]
     pub(super) fn bridge_off(&mut self) -> PwmCommand {
         self.hold_here();
+        self.stream.stop();
         self.reset_loops();
         // No current flows with the bridge off: the I²t model cools.
         self.current_dq = Dq::default();

@@ -9,8 +9,10 @@
 use core::f32::consts::PI;
 
 mod lifecycle;
+mod stream;
 mod validate;
 pub use lifecycle::*;
+pub use stream::StreamParams;
 pub use validate::{ParamError, ValidatedParams};
 
 #[cfg(feature = "serde")]
@@ -278,6 +280,7 @@ pub struct ControlParams {
     pub commutation: CommutationParams,
     pub homing: HomingParams,
     pub power_stage: PowerStageParams,
+    pub stream: StreamParams,
     pub thermal: ThermalParams,
     pub ratings: RatingParams,
     pub compensation: CompensationParams,
@@ -517,6 +520,7 @@ impl ControlParams {
         // 50 W is what a bench supply with its own small sink may absorb.
         // Back-EMF check: 20 rad/s is 80 rad/s electrical, 1.4 V of EMF, far
         // above the dead-time voltage error at standstill current.
+        stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05 },
         power_stage: PowerStageParams {
             temperature_foldback_c: 80.0,
             temperature_trip_c: 100.0,

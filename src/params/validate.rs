@@ -318,6 +318,10 @@ impl ControlParams {
         check!(non_negative("control.power_stage.regen_power_max_w", p.regen_power_max_w));
         check!(positive("control.power_stage.emf_speed_mismatch_rad_s", p.emf_speed_mismatch_rad_s));
         check!(positive("control.power_stage.emf_mismatch_time_s", p.emf_mismatch_time_s));
+        check!(positive("control.stream.period_max_s", self.stream.period_max_s));
+        if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
+            return Err(ParamError { field: "control.stream.timeout_s", reason: "must be >= stream.period_max_s" });
+        }
         Ok(())
     }
 }

@@ -79,6 +79,8 @@ impl FaultSet {
     pub const LIFECYCLE_TIMEOUT: Self = Self(1 << 26);
     /// Power-stage temperature at `power_stage.temperature_trip_c`.
     pub const POWER_STAGE_OVERTEMP: Self = Self(1 << 27);
+    /// A setpoint stream stopped arriving for `stream.timeout_s`.
+    pub const STREAM_TIMEOUT: Self = Self(1 << 28);
 
     /// Faults whose reaction is a controlled stop, not switching off. The
     /// motor, its sensors and the bridge still work (with an open phase, two
@@ -93,7 +95,8 @@ impl FaultSet {
             | Self::SOFT_LIMIT.0
             | Self::OBSERVER_OUT_OF_BOUNDS.0
             | Self::OPEN_PHASE.0
-            | Self::HOMING_FAILED.0,
+            | Self::HOMING_FAILED.0
+            | Self::STREAM_TIMEOUT.0,
     );
 
     /// Faults a start-up step raises: the step is refused for good (until
@@ -110,7 +113,7 @@ impl FaultSet {
     );
 
     /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 28] = [
+    pub const ALL: [(Self, &'static str); 29] = [
         (Self::OVERCURRENT, "overcurrent"),
         (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
         (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
@@ -139,6 +142,7 @@ impl FaultSet {
         (Self::HOMING_FAILED, "homing_failed"),
         (Self::LIFECYCLE_TIMEOUT, "lifecycle_timeout"),
         (Self::POWER_STAGE_OVERTEMP, "power_stage_overtemp"),
+        (Self::STREAM_TIMEOUT, "stream_timeout"),
     ];
 
     pub const fn is_empty(self) -> bool {

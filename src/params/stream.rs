@@ -1,0 +1,16 @@
+//! Streamed setpoints (`Command::Stream`).
+
+#[cfg(feature = "serde")]
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+pub struct StreamParams {
+    /// The slowest setpoint rate the drive interpolates over (100 Hz): the
+    /// first setpoint is reached over this, and a measured interval never
+    /// exceeds it.
+    pub period_max_s: f32,
+    /// No setpoint for this long ends the stream with a controlled stop
+    /// (`stream_timeout`): five periods of the slowest rate.
+    pub timeout_s: f32,
+}
