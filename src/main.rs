@@ -318,8 +318,11 @@ fn on_button(board: &mut hw::Board, mode: Mode) {
         Mode::Running => {
             send(board, Command::Disable);
         }
+        // `StartUp` runs whatever start-up step is still missing (offsets,
+        // commutation, homing) and ends holding; a drive that is ready
+        // already simply enables (preload, then the brake lets go).
         Mode::Disabled => {
-            send(board, Command::Enable);
+            send(board, Command::StartUp);
         }
         _ => info!("button ignored in {}", mode),
     }
