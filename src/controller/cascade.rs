@@ -16,6 +16,9 @@ use crate::telemetry::{Mode, Telemetry};
 /// for at most this much more q current than flows: it cannot get more, so
 /// its integrator must not wind up for it.
 const VOLTAGE_LIMITED_Q_MARGIN_A: f32 = 1.0;
+/// Hold torque below which the regeneration bound leaves the speed alone
+/// (a tenth of the rated load's 1.1 N·m).
+const REGEN_HOLD_TORQUE_MIN_N_M: f32 = 0.1;
 
 impl Controller {
     pub(super) fn rotor_state(&self) -> RotorState {
@@ -96,6 +99,7 @@ impl Controller {
     /// The position reference for this period: the planned move, homing,
     /// or the controlled stop.
     fn next_reference(&mut self) -> TrajectorySample {
+        self.planned_velocity_m_s = 0.0;
         if matches!(self.mode, Mode::Stopping | Mode::Braking) {
             return self.stop.advance(self.derived.position_period_s);
         }
@@ -113,6 +117,7 @@ impl Controller {
         self.move_ticks = self.move_ticks.saturating_add(1);
         let scale = self.move_time_scale;
         let mut r = self.trajectory.sample(t);
+        self.planned_velocity_m_s = r.velocity_m_s;
         if scale < 1.0 {
             // The move runs slower: its clock falls behind, its velocity and
             // acceleration shrink with it.
@@ -225,28 +230,38 @@ impl Controller {
         }
     }
 
-    /// Regeneration: while the bus is above `regen_bus_start_v`, a load that
-    /// drives the motor (torque against speed) may return at most the power
-    /// left between that and `regen_bus_max_v`. Refusing the current would
-    /// drop a hanging load; bounding the speed bounds the power instead.
+    /// Regeneration: while the bus is above `regen_bus_start_v`, a hanging
+    /// load may be lowered at most as fast as the power left between that
+    /// and `regen_bus_max_v` allows, `P / T_hold`. Refusing the current
+    /// would drop the load; bounding the lowering speed bounds the power.
+    /// The bound follows the slow load estimate (the weight, not the
+    /// instantaneous torque, whose sign flips with every correction), and
+    /// slows the move's own clock so the reference does not run away.
     fn bound_regeneration(&mut self) {
         self.move_time_scale = 1.0;
         let ps = &self.params.power_stage;
         if self.bus_voltage_v <= ps.regen_bus_start_v {
             return;
         }
-        let torque_n_m = self.params.torque_constant_n_m_a() * self.current_reference.q;
-        if torque_n_m * self.speed_reference_rad_s >= 0.0 {
+        let mpr = self.params.metres_per_rad();
+        let hold_torque_n_m = self.load.slow_force_n() * mpr;
+        // Below this no load hangs on the motor: braking the rotor's own
+        // inertia returns little, and the trip guards it.
+        if hold_torque_n_m.abs() < REGEN_HOLD_TORQUE_MIN_N_M {
             return;
         }
+        // A load that opposes extension drives the motor when lowered.
+        let lowering = -hold_torque_n_m.signum();
         let share = crate::math::clamp((ps.regen_bus_max_v - self.bus_voltage_v) / (ps.regen_bus_max_v - ps.regen_bus_start_v), 0.0, 1.0);
-        let speed_max = share * ps.regen_power_max_w / crate::math::max(torque_n_m.abs(), 1e-3);
-        if self.speed_reference_rad_s.abs() > speed_max {
-            // Slow the move itself (its clock) so it does not run away from
-            // the rod, and bound this period's speed.
-            self.move_time_scale = speed_max / self.speed_reference_rad_s.abs();
-            self.speed_reference_rad_s = speed_max.copysign(self.speed_reference_rad_s);
-            self.acceleration_reference_rad_s2 = 0.0;
+        let speed_max = share * ps.regen_power_max_w / hold_torque_n_m.abs();
+        // The planned speed, before any slowing: the clock's scale must not
+        // feed back on itself.
+        let planned = (self.planned_velocity_m_s / mpr) * lowering;
+        if planned > speed_max {
+            self.move_time_scale = speed_max / planned;
+        }
+        if self.speed_reference_rad_s * lowering > speed_max {
+            self.speed_reference_rad_s = speed_max * lowering;
             self.limits.insert(LimitFlags::REGEN);
         }
     }

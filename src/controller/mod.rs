@@ -206,6 +206,9 @@ pub struct Controller {
     telemetry: Telemetry,
     /// Streamed setpoints (`Command::Stream`), when a stream is running.
     stream: SetpointStream,
+    /// The planned move's velocity this position period, before any
+    /// slowing by the regeneration bound.
+    planned_velocity_m_s: f32,
 }
 
 impl Controller {
@@ -306,6 +309,7 @@ impl Controller {
             homing_backing_off: false,
             telemetry: Telemetry::default(),
             stream: SetpointStream::default(),
+            planned_velocity_m_s: 0.0,
             params,
         }
     }
