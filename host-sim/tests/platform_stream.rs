@@ -15,9 +15,9 @@ fn explore() {
     for (comp, ff) in [(false, false), (false, true), (true, false), (true, true)] {
         let r = run_stream(&p, &rig, &traj, &StreamOptions::new(comp, ff, RigSpread::NONE)).unwrap();
         println!(
-            "comp {comp} ff {ff} scale {:.3} peak {:.3}/{:.3}: pos rms {:.4} max {:.4} mm, att rms {:.5} max {:.5} deg, lag {:?}, term rms {:?}, limits {}, rtf {:.1}",
+            "comp {comp} ff {ff} scale {:.3} peak {:.3}/{:.3}: pos rms {:.4} max {:.4} mm, att rms {:.5} max {:.5} deg, lag {:?}, term rms {:?}, motor rms {:?}, limits {}, rtf {:.1}",
             r.amplitude_scale, r.peak_leg_rate_full_m_s, r.peak_leg_rate_streamed_m_s, r.pose_error_position_rms_mm, r.pose_error_position_max_mm, r.pose_error_attitude_rms_deg, r.pose_error_attitude_max_deg,
-            r.reference_lag_check_um, r.terminal_error_rms_um.map(|v| v.round()), r.limits_seen, r.sim_realtime_factor
+            r.reference_lag_check_um, r.terminal_error_rms_um.map(|v| v.round()), r.motor_tracking_rms_um.map(|v| (v*100.0).round()/100.0), r.limits_seen, r.sim_realtime_factor
         );
     }
 }

@@ -74,6 +74,8 @@ pub struct StreamTrace {
     pub pose_error: Vec<[f64; 6]>,
     /// Rod length − commanded length at the reference's time, µm.
     pub terminal_error_um: Vec<[f64; 6]>,
+    /// Position reference − motor side, µm.
+    pub motor_tracking_um: Vec<[f64; 6]>,
 }
 
 /// One streamed run.
@@ -97,6 +99,9 @@ pub struct StreamRun {
     /// Rod − commanded length at the reference's time, per leg, µm.
     pub terminal_error_rms_um: [f64; 6],
     pub terminal_error_max_um: [f64; 6],
+    /// Position reference − motor side (telemetry), per leg, RMS µm: how
+    /// well each drive tracks its own streamed reference.
+    pub motor_tracking_rms_um: [f64; 6],
     /// Position reference − commanded length at lag 0, 1, 2 setpoint
     /// intervals, RMS over legs and stream, µm (the smallest names the lag).
     pub reference_lag_check_um: [f64; 3],
@@ -287,6 +292,10 @@ pub fn run_stream(p: &Platform, rig: &RigConfig, full: &Trajectory, o: &StreamOp
             trace.time_s.push(t);
             trace.pose_error.push([d[0] * 1e3, d[1] * 1e3, d[2] * 1e3, d[3].to_degrees(), d[4].to_degrees(), d[5].to_degrees()]);
             trace.terminal_error_um.push(std::array::from_fn(|i| (rods[i] - sent[k - 1][i]) * 1e6));
+            trace.motor_tracking_um.push(std::array::from_fn(|i| {
+                let tel = legs[i].cl.controller.telemetry();
+                f64::from(tel.position_reference_m - tel.motor_position_m) * 1e6
+            }));
         }
     }
     for (i, leg) in legs.iter_mut().enumerate() {
@@ -320,6 +329,7 @@ fn summarise(
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let leg = |i: usize| trace.terminal_error_um.iter().map(|e| e[i]).collect::<Vec<f64>>();
+    let motor = |i: usize| trace.motor_tracking_um.iter().map(|e| e[i]).collect::<Vec<f64>>();
     StreamRun {
         trajectory: name,
         options,
@@ -334,6 +344,7 @@ fn summarise(
         pose_error_attitude_max_deg: max(&att),
         terminal_error_rms_um: std::array::from_fn(|i| rms(&leg(i))),
         terminal_error_max_um: std::array::from_fn(|i| max(&leg(i))),
+        motor_tracking_rms_um: std::array::from_fn(|i| rms(&motor(i))),
         reference_lag_check_um,
         limits_seen: format!("{limits:?}"),
         simulated_s,
