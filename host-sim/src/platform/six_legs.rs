@@ -4,11 +4,10 @@
 //! period.
 //!
 //! Limits of this first version (docs/platform.md, "Six closed-loop legs"):
-//! - The core has no streamed-setpoint mode and its `MoveTo` is rest-to-rest
-//!   (`Busy` while moving), so the legs make point-to-point moves to given
-//!   leg lengths (Table 4's), each leg on its own jerk-limited profile; the
-//!   pose is judged at rest, as in §5.3. Continuous pose trajectories wait
-//!   for the streaming mode.
+//! - `run_moves` uses the core's `MoveTo` (rest-to-rest, `Busy` while
+//!   moving): point-to-point moves to given leg lengths (Table 4's), each
+//!   leg on its own jerk-limited profile; the pose is judged at rest, as in
+//!   §5.3. Continuous pose trajectories are streamed in `stream.rs`.
 //! - Coupling at the position-loop rate: the pose is solved by forward
 //!   kinematics from the six legs' position references, its rate and
 //!   acceleration by differencing over the period; the leg forces so found
