@@ -87,3 +87,4 @@ fn bad_stream_options_are_refused_by_name() {
     let e = run_stream(&p, &rig, &scaled(&traj, 3.0), &StreamOptions { amplitude_scale: Some(1.0), ..short(false) }).unwrap_err().to_string();
     assert!(e.contains("heave") && e.contains("leg"), "{e}");
 }
+

@@ -9,6 +9,12 @@ use anyhow::{anyhow, Result};
 use serde::Serialize;
 use std::path::Path;
 
+/// The leg-level stroke: l_min + 5 mm → l_max − 5 mm → back (the paper's
+/// 0 → 450 mm stroke within its ends) in 8 s, peak leg rate 0.173 m/s,
+/// inside the drive's 0.2 m/s at full stroke.
+pub const LEG_STROKE_MARGIN_M: f64 = 0.005;
+pub const LEG_STROKE_PERIOD_S: f64 = 8.0;
+
 /// A figure without and with each leg's observer compensation.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct BeforeAfter {
@@ -26,7 +32,8 @@ pub struct StreamFigures {
     pub pose_error_attitude_max_deg: BeforeAfter,
     /// The uncompensated combined run's simulated / wall time (whole run).
     pub sim_realtime_factor: f64,
-    /// Every trajectory, without and with compensation, nominal rigs.
+    /// Every trajectory (and the leg-level stroke, `leg_stroke`), without
+    /// and with compensation, nominal rigs.
     pub runs: Vec<StreamRun>,
     /// Combined profile with the legs' rigs spread ±10 %.
     pub spread_runs: Vec<StreamRun>,
@@ -54,7 +61,9 @@ pub fn run_all(p: &Platform, rig: &RigConfig, out: &Path) -> Result<StreamFigure
             .map_err(|e| anyhow!("streamed `{}` (compensation {compensation}, force feedforward {ff}): {e:#}", traj.name))
     };
     let mut runs = Vec::new();
-    for traj in Trajectory::all(p) {
+    let mut trajectories = Trajectory::all(p);
+    trajectories.push(Trajectory::leg_stroke(p, LEG_STROKE_MARGIN_M, LEG_STROKE_PERIOD_S));
+    for traj in trajectories {
         for compensation in [false, true] {
             runs.push(go(&traj, compensation, false, RigSpread::NONE)?);
         }
@@ -66,6 +75,9 @@ pub fn run_all(p: &Platform, rig: &RigConfig, out: &Path) -> Result<StreamFigure
     let (off, on) = (find(false)?, find(true)?);
     for (r, tag) in [(off, "uncompensated"), (on, "compensated"), (&spread_runs[0], "spread_uncompensated"), (&spread_runs[1], "spread_compensated")] {
         plot(r, tag, out)?;
+    }
+    for r in runs.iter().filter(|r| r.trajectory == "leg_stroke") {
+        plot(r, if r.options.compensation { "compensated" } else { "uncompensated" }, out)?;
     }
     let pair = |f: fn(&StreamRun) -> f64| BeforeAfter { uncompensated: f(off), compensated: f(on) };
     Ok(StreamFigures {
