@@ -11,6 +11,8 @@ pub mod plots;
 pub mod pose_error;
 pub mod run;
 pub mod six_legs;
+pub mod stream;
+pub mod stream_report;
 pub mod table4;
 pub mod table4_md;
 pub mod trajectory;

@@ -93,28 +93,33 @@ pub fn geometry_png(p: &Platform, path: &Path) -> Result<()> {
 /// `six_legs_{tag}_pose_error.png` (position and attitude) and
 /// `six_legs_{tag}_terminal_error.png` over a six-leg run.
 pub fn six_leg_plots(tag: &str, t: &SixLegTrace, dir: &Path) -> Result<()> {
+    let titles = [
+        format!("six closed-loop legs ({tag}): FK(rods) − FK(references), position"),
+        format!("six closed-loop legs ({tag}): FK(rods) − FK(references), attitude"),
+        format!("six closed-loop legs ({tag}): rod − position reference"),
+    ];
+    error_plots(&format!("six_legs_{tag}"), &titles, t, dir)
+}
+
+/// `{prefix}_pose_position_error.png`, `{prefix}_pose_attitude_error.png`,
+/// `{prefix}_terminal_error.png`, titled `titles` in that order.
+pub fn error_plots(prefix: &str, titles: &[String; 3], t: &SixLegTrace, dir: &Path) -> Result<()> {
     let series = |label: &'static str, f: &dyn Fn(usize) -> f64| Series { name: label, points: (0..t.time_s.len()).map(|k| (t.time_s[k], f(k))).collect() };
     line_chart(
-        &dir.join(format!("six_legs_{tag}_pose_position_error.png")),
-        &format!("six closed-loop legs ({tag}): FK(rods) − FK(references), position"),
+        &dir.join(format!("{prefix}_pose_position_error.png")),
+        &titles[0],
         "time [s]",
         "position error [mm]",
         &[series("x", &|k| t.pose_error[k][0]), series("y", &|k| t.pose_error[k][1]), series("z", &|k| t.pose_error[k][2])],
     )?;
     line_chart(
-        &dir.join(format!("six_legs_{tag}_pose_attitude_error.png")),
-        &format!("six closed-loop legs ({tag}): FK(rods) − FK(references), attitude"),
+        &dir.join(format!("{prefix}_pose_attitude_error.png")),
+        &titles[1],
         "time [s]",
         "attitude error [deg]",
         &[series("roll", &|k| t.pose_error[k][3]), series("pitch", &|k| t.pose_error[k][4]), series("yaw", &|k| t.pose_error[k][5])],
     )?;
     const LEGS: [&str; 6] = ["leg 1", "leg 2", "leg 3", "leg 4", "leg 5", "leg 6"];
     let legs: Vec<Series> = (0..6).map(|i| series(LEGS[i], &|k| t.terminal_error_um[k][i])).collect();
-    line_chart(
-        &dir.join(format!("six_legs_{tag}_terminal_error.png")),
-        &format!("six closed-loop legs ({tag}): rod − position reference"),
-        "time [s]",
-        "terminal error [µm]",
-        &legs,
-    )
+    line_chart(&dir.join(format!("{prefix}_terminal_error.png")), &titles[2], "time [s]", "terminal error [µm]", &legs)
 }

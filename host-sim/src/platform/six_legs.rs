@@ -4,11 +4,10 @@
 //! period.
 //!
 //! Limits of this first version (docs/platform.md, "Six closed-loop legs"):
-//! - The core has no streamed-setpoint mode and its `MoveTo` is rest-to-rest
-//!   (`Busy` while moving), so the legs make point-to-point moves to given
-//!   leg lengths (Table 4's), each leg on its own jerk-limited profile; the
-//!   pose is judged at rest, as in §5.3. Continuous pose trajectories wait
-//!   for the streaming mode.
+//! - `run_moves` uses the core's `MoveTo` (rest-to-rest, `Busy` while
+//!   moving): point-to-point moves to given leg lengths (Table 4's), each
+//!   leg on its own jerk-limited profile; the pose is judged at rest, as in
+//!   §5.3. Continuous pose trajectories are streamed in `stream.rs`.
 //! - Coupling at the position-loop rate: the pose is solved by forward
 //!   kinematics from the six legs' position references, its rate and
 //!   acceleration by differencing over the period; the leg forces so found
@@ -29,12 +28,12 @@ use nalgebra::Vector6;
 use servo_core::{Command, CommandOutcome, Controller};
 
 /// One leg: its closed loop and what it was last told.
-struct LegLoop {
-    cl: ClosedLoop,
+pub(super) struct LegLoop {
+    pub(super) cl: ClosedLoop,
 }
 
 impl LegLoop {
-    fn x_rod(&self) -> f64 {
+    pub(super) fn x_rod(&self) -> f64 {
         self.cl.plant.state().terminal_position_m
     }
 }
@@ -121,14 +120,14 @@ impl RigSpread {
 /// exactly l_min that would already be outside the workspace.
 pub const START_STROKE_M: f64 = 0.005;
 
-struct LegSetup<'a> {
-    rig: &'a RigConfig,
-    spread: &'a RigSpread,
-    seed: u64,
-    compensation: bool,
+pub(super) struct LegSetup<'a> {
+    pub(super) rig: &'a RigConfig,
+    pub(super) spread: &'a RigSpread,
+    pub(super) seed: u64,
+    pub(super) compensation: bool,
 }
 
-fn new_leg(s: &LegSetup, p: &Platform, i: usize, start: &Pose, force_n: f64) -> Result<Box<LegLoop>> {
+pub(super) fn new_leg(s: &LegSetup, p: &Platform, i: usize, start: &Pose, force_n: f64) -> Result<Box<LegLoop>> {
     let (rig, seed, compensation) = (s.rig, s.seed, s.compensation);
     let mut params = rig.plant.clone();
     params.rod.payload_mass_kg = p.geometry.upper_leg_mass_kg;
@@ -174,13 +173,13 @@ type Batch = (Vec<Box<LegLoop>>, u64);
 /// boxes move, not the legs) for each position-loop period and hands them
 /// back, while the calling thread steps legs 1–3. A thread spawned per
 /// period would cost a good part of the period's work.
-struct Worker {
+pub(super) struct Worker {
     to: std::sync::mpsc::Sender<Batch>,
     from: std::sync::mpsc::Receiver<(Vec<Box<LegLoop>>, Result<()>)>,
 }
 
 impl Worker {
-    fn spawn() -> Self {
+    pub(super) fn spawn() -> Self {
         let (to, rx) = std::sync::mpsc::channel::<Batch>();
         let (tx, from) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
@@ -195,7 +194,7 @@ impl Worker {
     }
 
     /// Advances every leg by `periods` PWM periods, three per thread.
-    fn step(&self, legs: &mut Vec<Box<LegLoop>>, periods: u64) -> Result<()> {
+    pub(super) fn step(&self, legs: &mut Vec<Box<LegLoop>>, periods: u64) -> Result<()> {
         let back = legs.split_off(3);
         self.to.send((back, periods)).map_err(|_| anyhow!("the leg thread is gone"))?;
         let ra = step_chunk(legs, periods);

@@ -96,6 +96,26 @@ impl Trajectory {
         )
     }
 
+    /// The paper's stroke at leg level (§5.2: 0 → 450 mm → 0): the plate
+    /// level and centred heaves so that every leg goes from
+    /// l_min + `margin_m` to l_max − `margin_m` and back, one slow sine
+    /// period starting at rest at the bottom. On the platform the legs'
+    /// tilt follows from the geometry (it steepens as they extend); it is
+    /// not the single rig's 90° → 60° → 90° schedule.
+    pub fn leg_stroke(p: &Platform, margin_m: f64, period_s: f64) -> Self {
+        let g = &p.geometry;
+        let h = (p.joints.top[0] - p.joints.base[0]).xy().norm();
+        let z = |l: f64| (l * l - h * h).sqrt();
+        let (zb, zt) = (z(g.leg_min_length_m + margin_m), z(g.leg_max_length_m - margin_m));
+        let heave = Sine { amplitude: 0.5 * (zt - zb), frequency_hz: 1.0 / period_s, phase_rad: -std::f64::consts::FRAC_PI_2 };
+        Self {
+            name: "leg_stroke",
+            duration_s: period_s,
+            neutral: [0.0, 0.0, 0.5 * (zb + zt), 0.0, 0.0, 0.0],
+            sines: [vec![], vec![], vec![heave], vec![], vec![], vec![]],
+        }
+    }
+
     pub fn all(p: &Platform) -> Vec<Self> {
         vec![Self::heave(p), Self::roll(p), Self::pitch(p), Self::combined(p)]
     }
