@@ -520,9 +520,8 @@ impl ControlParams {
         // 50 W is what a bench supply with its own small sink may absorb.
         // Back-EMF check: 20 rad/s is 80 rad/s electrical, 1.4 V of EMF, far
         // above the dead-time voltage error at standstill current; netted
-        // over 10 ms, the dead time's wobble cancels (the withheld-effect
-        // suite's dead-time rigs stay clean) and a slipping load is caught
-        // within ≈ 1 mm.
+        // over 20 ms, the dead time's wobble and a platform leg's reversals
+        // cancel (10 ms tripped a streamed platform leg falsely).
         stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05 },
         power_stage: PowerStageParams {
             temperature_foldback_c: 80.0,
@@ -531,7 +530,7 @@ impl ControlParams {
             regen_bus_max_v: 58.0,
             regen_power_max_w: 50.0,
             emf_speed_mismatch_rad_s: 20.0,
-            emf_mismatch_time_s: 0.01,
+            emf_mismatch_time_s: 0.02,
         },
         // Rated torque 1.27 N·m at K_t = 0.105 → 12 A continuous. A 400 W
         // servo winding's thermal time constant is minutes; 30 s is on the
