@@ -14,7 +14,7 @@
 //! interrupt (`masking`).
 //!
 //! Nothing moves at power-up: after any reset the drive waits for a command,
-//! unless [`START_LIFECYCLE_AT_POWER_UP`] says otherwise.
+//! unless `control.startup.run_at_power_up` says otherwise.
 //!
 //! See docs/firmware.md for pins, the power-up sequence, the brake, timing,
 //! flashing and reading the log.
@@ -33,26 +33,9 @@ use defmt::{error, info, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_stm32::pac;
-use embassy_time::{Duration, Instant, Ticker, Timer};
+use embassy_time::{Duration, Ticker, Timer};
 use panic_probe as _;
 use servo_core::{Command, Controller, Mode};
-
-/// THE user configuration that decides whether the drive moves by itself
-/// after power-up or any reset. `false` (default): it waits, bridge off,
-/// brake closed, for a command. `true`: the main task sends
-/// [`POWER_UP_SEQUENCE`] once the current offsets are known — only for a
-/// machine where moving unasked at every reset (watchdog reset included) is
-/// safe with whatever hangs on the rod. Nothing else in the image starts
-/// motion.
-const START_LIFECYCLE_AT_POWER_UP: bool = false;
-/// What "start" means when [`START_LIFECYCLE_AT_POWER_UP`] is set: commands
-/// sent in order, each retried until the drive accepts it (so each waits for
-/// the previous step to finish) or [`POWER_UP_STEP_TIMEOUT`] passes.
-/// `StartUp` runs the core's lifecycle: calibrate → commutate (brake closed,
-/// load on) → home → ready, holding.
-const POWER_UP_SEQUENCE: &[Command] = &[Command::StartUp];
-/// Longest wait for one step of [`POWER_UP_SEQUENCE`] to be accepted.
-const POWER_UP_STEP_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
 /// of defmt (17 floats, mode, options, fault names as indices), so 50 Hz is
@@ -160,18 +143,22 @@ async fn main(_spawner: Spawner) {
         controller.report_watchdog_reset();
     }
     let faults = controller.faults();
-    if link::install_controller(controller).is_err() {
-        error!("a controller was installed already");
-    }
     if !faults.is_empty() {
         error!("controller refuses to run: faults {}", faults);
     }
-
-    if START_LIFECYCLE_AT_POWER_UP && faults.is_empty() {
-        warn!("START_LIFECYCLE_AT_POWER_UP: the drive starts by itself");
-        run_power_up_sequence(&mut board, &mut dog).await;
+    // The one switch for moving unasked after power-up or any reset:
+    // `control.startup.run_at_power_up` (default false). A latched fault
+    // (a watchdog reset among them) refuses it: the drive then waits.
+    if board::VALID_PARAMS.get().startup.run_at_power_up {
+        match controller.power_up() {
+            Ok(_) => warn!("startup.run_at_power_up: the drive starts by itself"),
+            Err(e) => warn!("startup.run_at_power_up refused: {}", e),
+        }
     } else {
         info!("ready: waiting for a command (bridge off, brake closed)");
+    }
+    if link::install_controller(controller).is_err() {
+        error!("a controller was installed already");
     }
 
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
@@ -273,28 +260,6 @@ fn send(board: &mut hw::Board, cmd: Command) -> bool {
         Err(e) => {
             error!("{} lost: {} (is the PWM interrupt running?)", cmd, e);
             false
-        }
-    }
-}
-
-/// Only with [`START_LIFECYCLE_AT_POWER_UP`]: each step of
-/// [`POWER_UP_SEQUENCE`], retried until accepted (the previous one finished)
-/// or timed out (then the drive is disabled and waits for a command).
-async fn run_power_up_sequence(board: &mut hw::Board, dog: &mut Watchdog) {
-    for &cmd in POWER_UP_SEQUENCE {
-        let deadline = Instant::now() + POWER_UP_STEP_TIMEOUT;
-        loop {
-            if let Ok(Reply::Drive(Ok(outcome))) = board.call(Request::Drive(cmd)) {
-                info!("power-up: {} -> {}", cmd, outcome);
-                break;
-            }
-            if Instant::now() >= deadline {
-                warn!("power-up: {} not accepted within {=u64} ms; disabling", cmd, POWER_UP_STEP_TIMEOUT.as_millis());
-                send(board, Command::Disable);
-                return;
-            }
-            Timer::after(STARTUP_POLL).await;
-            dog.feed_if_isr_alive();
         }
     }
 }

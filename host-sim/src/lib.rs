@@ -6,7 +6,6 @@
 //! leaves behind, `config` reads the rig file, `trainer` fits the error observer.
 
 pub mod config;
-pub mod parallel;
 pub mod diagnose;
 pub mod fault_injection;
 pub mod plant;

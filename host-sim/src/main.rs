@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use rayon::prelude::*;
 use host_sim::config::RigConfig;
 use host_sim::report::{self, csv_out, metrics, plots};
 use host_sim::scenario::dataset::{self, DatasetSpec};
@@ -206,7 +207,8 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     let rig = RigConfig::load_or_nominal(params.as_ref())?;
     let t0 = std::time::Instant::now();
     let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
-    let rows = host_sim::parallel::map(&cases, |c| power_up::run_case(&rig, c))?;
+    // Independent runs, each with its own plant and controller.
+    let rows = cases.par_iter().map(|c| power_up::run_case(&rig, c)).collect::<Result<Vec<_>>>()?;
     let zeros = if homings > 0 { power_up::homing_repeatability(&rig, &cases[0], homings)? } else { vec![] };
     let summary = power_up::summarise(&rows, &zeros, t0.elapsed().as_secs_f64());
     power_up::write_report(&summary, &rows, &out)?;

@@ -5,12 +5,13 @@
 
 use host_sim::config::RigConfig;
 use host_sim::power_up::{homing_repeatability, run_case, suite, Failure};
+use rayon::prelude::*;
 
 #[test]
 fn power_ups_and_failures_meet_the_issue_bars() {
     let rig = RigConfig::nominal().unwrap();
     let cases = suite(3, 0.01, 0.05, rig.plant.screw.lead_m, 7);
-    let rows = host_sim::parallel::map(&cases, |c| run_case(&rig, c)).unwrap();
+    let rows = cases.par_iter().map(|c| run_case(&rig, c)).collect::<anyhow::Result<Vec<_>>>().unwrap();
     for r in &rows {
         println!("{:28} passed {} {:?} movement {:.4} mm drop {:.4} mm offset {:?}° sag {:?} µm ready {:?} s", r.name, r.passed, r.faults, r.rod_movement_max_mm, r.rod_drop_max_mm, r.electrical_offset_error_deg, r.enable_sag_um, r.time_to_ready_s);
     }

@@ -7,7 +7,7 @@
 //! hung executor or a dead ADC trigger all end in a reset: TIM1's outputs
 //! reset to disabled (bridge off), the brake pin stops toggling (brake
 //! closed), and after it the controller latches `WATCHDOG_RESET`, nothing is
-//! started (`START_LIFECYCLE_AT_POWER_UP` aside) and the drive waits for a
+//! started (a latched fault refuses even `startup.run_at_power_up`) and the drive waits for a
 //! command and an explicit clear.
 
 use embassy_stm32::pac;

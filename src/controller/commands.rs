@@ -193,8 +193,7 @@ impl Controller {
             }
             Command::Calibrate => {
                 self.check_idle()?;
-                self.calibration = CurrentCalibration::new(self.derived.calibration_samples);
-                self.mode = Mode::Calibrating;
+                self.begin_calibration();
                 Ok(CommandOutcome::Accepted)
             }
             Command::Align => {
@@ -292,12 +291,10 @@ impl Controller {
                 return Ok(CommandOutcome::Accepted);
             }
             Mode::Disabled => {
-                self.hold_here();
-                self.reset_loops();
-                if self.params.brake.fitted {
-                    self.speed_loop.preload(self.hold_current_q_a);
-                    self.current_reference = Dq { d: 0.0, q: self.hold_current_q_a };
-                }
+                // Without a brake nothing holds the load before the loops
+                // do: no preload to build, nothing to wait for.
+                let preload = if self.params.brake.fitted { self.hold_current_q_a } else { 0.0 };
+                self.start_holding(preload);
                 self.brake_periods = 0;
             }
             _ => return Err(CommandError::Busy),
@@ -333,7 +330,7 @@ impl Controller {
         }
         let here = Setpoint { position_m: self.position_reference_m, velocity_m_s: 0.0 };
         let max = self.derived.stream_max_ticks;
-        self.stream.push(Setpoint { position_m, velocity_m_s: velocity }, force_n, here, max, max, self.derived.position_period_s);
+        self.stream.push(Setpoint { position_m, velocity_m_s: velocity }, force_n, here, max, self.derived.position_period_s);
         if clamped {
             self.pending_limits.insert(LimitFlags::STROKE);
             return Ok(CommandOutcome::ClampedToStroke { position_m });
@@ -364,6 +361,20 @@ impl Controller {
             return Err(CommandError::Busy);
         }
         Ok(())
+    }
+
+    /// Loops reset, holding here, the speed loop already delivering
+    /// `current_q_a` (the load's hold current; 0 for none).
+    pub(super) fn start_holding(&mut self, current_q_a: f32) {
+        self.hold_here();
+        self.reset_loops();
+        self.speed_loop.preload(current_q_a);
+        self.current_reference = Dq { d: 0.0, q: current_q_a };
+    }
+
+    pub(super) fn begin_calibration(&mut self) {
+        self.calibration = CurrentCalibration::new(self.derived.calibration_samples);
+        self.mode = Mode::Calibrating;
     }
 
     pub(super) fn begin_commutation(&mut self) {

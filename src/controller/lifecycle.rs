@@ -4,7 +4,6 @@
 //! `crate::lifecycle`.
 
 use super::Controller;
-use crate::foc::Dq;
 use crate::io::{PwmCommand, SensorSample};
 use crate::lifecycle::{CalibrationResult, CommutationInput, Readiness};
 use crate::motion::ScurveMove;
@@ -19,8 +18,7 @@ impl Controller {
         }
         if !self.readiness.contains(Readiness::CURRENTS_CALIBRATED) {
             if self.mode == Mode::Disabled {
-                self.calibration = crate::lifecycle::CurrentCalibration::new(self.derived.calibration_samples);
-                self.mode = Mode::Calibrating;
+                self.begin_calibration();
             }
         } else if !self.readiness.contains(Readiness::COMMUTATED) {
             if self.mode == Mode::Disabled {
@@ -88,11 +86,8 @@ impl Controller {
                     // Bumpless: the vector the rotor hangs on, in its own
                     // frame, is where field-oriented control starts; its q
                     // part is the load, which the speed loop now carries.
-                    self.hold_here();
-                    self.reset_loops();
+                    self.start_holding(r.current_q_a);
                     self.hold_current_q_a = r.current_q_a;
-                    self.speed_loop.preload(r.current_q_a);
-                    self.current_reference = Dq { d: 0.0, q: r.current_q_a };
                     self.brake_periods = u32::MAX;
                     self.mode = Mode::Running;
                     self.next_start_up_step();

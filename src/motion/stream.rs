@@ -50,9 +50,10 @@ impl SetpointStream {
     }
 
     /// A new setpoint. The first starts from `here` (at rest) over
-    /// `first_interval_ticks`; later ones from the present reference over
-    /// the interval since the previous one, at most `max_interval_ticks`.
-    pub fn push(&mut self, sp: Setpoint, force_n: f32, here: Setpoint, first_interval_ticks: u32, max_interval_ticks: u32, dt_s: f32) {
+    /// `max_interval_ticks` (the slowest rate: a gentle start); later ones
+    /// from the present reference over the interval since the previous
+    /// one, at most `max_interval_ticks`.
+    pub fn push(&mut self, sp: Setpoint, force_n: f32, here: Setpoint, max_interval_ticks: u32, dt_s: f32) {
         if self.active {
             // Where the reference is now; at the end of the interval that is
             // the previous setpoint itself, moving at its velocity (resting
@@ -66,7 +67,7 @@ impl SetpointStream {
             self.interval_ticks = self.since_ticks.clamp(1, max_interval_ticks.max(1));
         } else {
             self.from = here;
-            self.interval_ticks = first_interval_ticks.max(1);
+            self.interval_ticks = max_interval_ticks.max(1);
             self.active = true;
         }
         self.to = sp;

@@ -177,6 +177,11 @@ impl FaultSet {
         Self(self.0 & !other.0)
     }
 
+    /// The short names of the faults in this set, in bit order.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        Self::ALL.iter().filter(move |(bit, _)| self.contains(*bit)).map(|(_, name)| *name)
+    }
+
     /// True if every latched fault is one that calls for a controlled stop.
     pub const fn only_controlled_stop(self) -> bool {
         !self.is_empty() && self.difference(Self::CONTROLLED_STOP).is_empty()
@@ -190,15 +195,11 @@ impl defmt::Format for FaultSet {
             defmt::write!(f, "none");
             return;
         }
-        let mut first = true;
-        for (bit, name) in Self::ALL.iter() {
-            if self.contains(*bit) {
-                if !first {
-                    defmt::write!(f, "|");
-                }
-                defmt::write!(f, "{=str}", name);
-                first = false;
+        for (k, name) in self.names().enumerate() {
+            if k > 0 {
+                defmt::write!(f, "|");
             }
+            defmt::write!(f, "{=str}", name);
         }
     }
 }

@@ -321,7 +321,7 @@ pub fn names(f: FaultSet) -> String {
     if f.is_empty() {
         return "none".into();
     }
-    FaultSet::ALL.iter().filter(|(bit, _)| f.contains(*bit)).map(|(_, n)| *n).collect::<Vec<_>>().join("|")
+    f.names().collect::<Vec<_>>().join("|")
 }
 
 fn first_non_finite_telemetry(t: &Telemetry) -> Option<&'static str> {

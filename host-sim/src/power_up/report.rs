@@ -48,9 +48,7 @@ pub fn write_report(summary: &serde_json::Value, rows: &[CaseResult], out: &Path
     );
     let opt = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     for r in rows {
-        let expected = r.failure.expected_fault().map_or("ready".to_string(), |f| {
-            servo_core::FaultSet::ALL.iter().filter(|(b, _)| f.contains(*b)).map(|(_, n)| *n).collect::<Vec<_>>().join("|")
-        });
+        let expected = r.failure.expected_fault().map_or("ready".to_string(), crate::fault_injection::names);
         let _ = writeln!(
             md,
             "| {} | {} | {} | {} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",

@@ -52,10 +52,6 @@ pub struct CaseResult {
     pub rotation_ratio: f64,
 }
 
-fn fault_names(f: FaultSet) -> Vec<&'static str> {
-    FaultSet::ALL.iter().filter(|(bit, _)| f.contains(*bit)).map(|(_, n)| *n).collect()
-}
-
 /// The rig of `case`, with the drive off and the load on the closed brake.
 fn build(rig: &RigConfig, case: &PowerUpCase) -> Result<ClosedLoop> {
     let mut control = rig.control;
@@ -182,7 +178,7 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
         failure: case.failure,
         passed: false,
         verdict: String::new(),
-        faults: fault_names(c.faults()),
+        faults: c.faults().names().collect(),
         rod_movement_max_mm: movement * 1e3,
         rod_drop_max_mm: drop * 1e3,
         electrical_offset_error_deg: offset_error_deg,
@@ -244,7 +240,7 @@ fn judge(r: &CaseResult, expected: Option<FaultSet>, faults: FaultSet) -> String
                 return "became ready despite the fault".into();
             }
             if !faults.contains(f) {
-                return format!("expected {:?}, latched {:?}", fault_names(f), r.faults);
+                return format!("expected {}, latched {:?}", crate::fault_injection::names(f), r.faults);
             }
             if !r.bridge_off_at_end || !r.brake_closed_at_end {
                 return format!("end state: bridge off {}, brake closed {}", r.bridge_off_at_end, r.brake_closed_at_end);
@@ -277,7 +273,7 @@ pub fn homing_repeatability(rig: &RigConfig, case: &PowerUpCase, homings: usize)
             cl.step();
             steps += 1;
             if steps > seconds(&cl, START_UP_BOUND_S) || !cl.controller.faults().is_empty() {
-                anyhow::bail!("homing {k}: not ready; faults {:?}", fault_names(cl.controller.faults()));
+                anyhow::bail!("homing {k}: not ready; faults {}", crate::fault_injection::names(cl.controller.faults()));
             }
         }
         for _ in 0..seconds(&cl, 0.2) {

@@ -236,14 +236,7 @@ fn ADC1_2() {
     if !adc1.isr().read().jeos() {
         return;
     }
-    adc1.isr().write(|w| {
-        w.set_jeos(true);
-        w.set_jeoc(true);
-    });
-    adc2.isr().write(|w| {
-        w.set_jeos(true);
-        w.set_jeoc(true);
-    });
+    setup::clear_injected_flags();
     let raw = Raw {
         i_u: adc1.jdr(0).read().jdata(),
         i_w: adc1.jdr(1).read().jdata(),

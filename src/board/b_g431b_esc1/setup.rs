@@ -423,14 +423,7 @@ fn setup_adcs() -> Result<(), BoardError> {
     });
 
     // ADC1 ends last (longer sequence, same trigger): its JEOS runs the loop.
-    adc1.isr().write(|w| {
-        w.set_jeos(true);
-        w.set_jeoc(true);
-    });
-    adc2.isr().write(|w| {
-        w.set_jeos(true);
-        w.set_jeoc(true);
-    });
+    clear_injected_flags();
     adc1.ier().write(|w| w.set_jeosie(true));
     Ok(())
 }
@@ -442,4 +435,16 @@ fn wait_until(mut done: impl FnMut() -> bool) -> bool {
         }
     }
     false
+}
+
+/// Acknowledges both ADCs' injected end-of-conversion and end-of-sequence
+/// flags (write 1 to clear): at set-up, and every period in the interrupt.
+#[inline(always)]
+pub(super) fn clear_injected_flags() {
+    for adc in [pac::ADC1, pac::ADC2] {
+        adc.isr().write(|w| {
+            w.set_jeos(true);
+            w.set_jeoc(true);
+        });
+    }
 }
