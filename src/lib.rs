@@ -28,6 +28,7 @@ pub mod observer;
 pub mod params;
 pub mod pi;
 pub mod protection;
+pub mod protocol;
 pub mod telemetry;
 
 pub use controller::{Command, CommandError, CommandOutcome, Controller};

@@ -7,7 +7,7 @@ use crate::protection::{FaultSet, LimitFlags};
 /// What the drive is doing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Mode {
     /// Bridge off, loops reset, encoder still tracked.
     #[default]
@@ -38,7 +38,7 @@ pub enum Mode {
 /// A snapshot of the drive, refreshed every position-loop period.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub struct Telemetry {
     /// Time since the controller was created, from its own period count.
     pub time_s: f32,

@@ -64,7 +64,7 @@ pub enum CommandOutcome {
 }
 
 /// Why a command was refused. Nothing changed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CommandError {
     /// Faults are latched; clear them first.

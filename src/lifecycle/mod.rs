@@ -18,7 +18,7 @@ pub use homing::{Homing, HomingInput, HomingOutput};
 /// Which start-up steps are done. Read in telemetry; `Enable` needs
 /// `COMMUTATED`, moves and streams need `HOMED` too.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub struct Readiness(pub u8);
 
 impl Readiness {

@@ -2,12 +2,12 @@
 //! up, the current-offset calibration, commutation under load, homing, and
 //! the power stage's own limits (temperature, regeneration).
 
-#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// What the drive knows, and may do, when it starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct StartupParams {
     /// `encoder.electrical_offset_rad` is valid at power-up: true only for an
     /// absolute encoder mounted and measured once (or a simulated rig that
@@ -33,7 +33,8 @@ pub struct StartupParams {
 
 /// Current-sensor offsets, measured with the bridge off.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct CalibrationParams {
     /// Averaging time. 0.1 s (2000 samples) takes the ESC1's 29 mA code
     /// noise below 1 mA.
@@ -60,7 +61,8 @@ pub struct CalibrationParams {
 /// electrical angle and back (direction and pole pairs), and hands over to
 /// field-oriented control.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct CommutationParams {
     /// Test current of the sweep. 8 A is 0.84 N·m: with the rated load's
     /// 1.1 N·m the disc carries at most 1.9 N·m of its 2.5.
@@ -99,7 +101,7 @@ pub struct CommutationParams {
 
 /// How the drive finds the rod's reference position.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum HomingMethod {
     /// Drive into the end stop at a bounded current; the stop defines home.
@@ -110,7 +112,8 @@ pub enum HomingMethod {
 
 /// Homing on an incremental encoder.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct HomingParams {
     pub method: HomingMethod,
     /// −1: towards the retracted end, +1: towards the extended end.
@@ -142,7 +145,8 @@ pub struct HomingParams {
 
 /// The power stage's own protections.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct PowerStageParams {
     /// Heat-sink temperature where the current limit starts to fold back…
     pub temperature_foldback_c: f32,

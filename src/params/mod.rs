@@ -15,12 +15,12 @@ pub use lifecycle::*;
 pub use stream::StreamParams;
 pub use validate::{ParamError, ValidatedParams};
 
-#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// Electrical model of the PMSM as the controller believes it (nameplate).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct MotorParams {
     /// Pole pairs `p`.
     pub pole_pairs: u32,
@@ -36,7 +36,8 @@ pub struct MotorParams {
 
 /// The mechanics as the controller believes them, for feedforward and scaling.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct DriveTrainParams {
     /// Ball-screw lead `L_s`: nut travel per screw revolution.
     pub screw_lead_m: f32,
@@ -65,7 +66,8 @@ pub struct DriveTrainParams {
 /// Loop rates. The current loop runs every PWM period; the outer loops are
 /// decimated from it so all three stay phase-locked to the ADC trigger.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct RateParams {
     /// PWM (and current-loop) frequency.
     pub pwm_frequency_hz: f32,
@@ -77,7 +79,8 @@ pub struct RateParams {
 
 /// Gains of one PI regulator.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct PiGains {
     /// Proportional gain (output unit per error unit).
     pub kp: f32,
@@ -87,7 +90,8 @@ pub struct PiGains {
 
 /// Quadrature encoder and its tracking observer (a type-2 PLL).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct EncoderParams {
     /// Counts per mechanical revolution (lines × 4).
     pub counts_per_rev: u32,
@@ -103,7 +107,8 @@ pub struct EncoderParams {
 
 /// Jerk-limited (S-curve) trajectory limits, at the piston rod.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct TrajectoryParams {
     pub max_velocity_m_s: f32,
     pub max_acceleration_m_s2: f32,
@@ -112,7 +117,8 @@ pub struct TrajectoryParams {
 
 /// The paper's Eq. 19 operating limits plus the inverter's.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct LimitParams {
     /// Current circle `i_d² + i_q² ≤ i_s²` (peak phase amplitude).
     pub current_max_a: f32,
@@ -130,7 +136,8 @@ pub struct LimitParams {
 
 /// Thresholds that latch a fault (see `protection::faults`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct FaultParams {
     /// Instantaneous phase current trip, checked every PWM period.
     pub overcurrent_trip_a: f32,
@@ -182,7 +189,8 @@ pub struct FaultParams {
 /// The spring-applied holding brake on the motor shaft (power to open).
 /// A vertical leg must not drop its payload when the bridge goes off.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct BrakeParams {
     /// False: no brake; `Disable` switches the bridge off at once.
     pub fitted: bool,
@@ -206,7 +214,8 @@ pub struct BrakeParams {
 /// continuous current, `τ dθ/dt = |i|²/I_c² − θ`; θ = 1 is the steady state
 /// at the continuous rating.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct ThermalParams {
     /// Continuous current (peak phase amplitude) the winding tolerates.
     pub continuous_current_a: f32,
@@ -222,7 +231,8 @@ pub struct ThermalParams {
 
 /// What the hardware can take: limits above these are refused at load time.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct RatingParams {
     /// Motor peak current (demagnetisation bound), phase amplitude.
     pub motor_peak_current_a: f32,
@@ -236,7 +246,8 @@ pub struct RatingParams {
 
 /// Load-force estimate from the q-axis current.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct LoadEstimateParams {
     /// First-order low-pass corner on the estimate.
     pub filter_hz: f32,
@@ -244,7 +255,8 @@ pub struct LoadEstimateParams {
 
 /// Terminal-error compensation by the observer (see `compensation`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct CompensationParams {
     /// Compensation on at power-up (it can be switched at run time).
     pub enabled_at_start: bool,
@@ -256,7 +268,8 @@ pub struct CompensationParams {
 
 /// The whole parameter set of the control core.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct ControlParams {
     pub motor: MotorParams,
     pub drive_train: DriveTrainParams,

@@ -1,10 +1,10 @@
 //! Streamed setpoints (`Command::Stream`).
 
-#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(deny_unknown_fields))]
+#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[serde(deny_unknown_fields)]
 pub struct StreamParams {
     /// The slowest setpoint rate the drive interpolates over (100 Hz): the
     /// first setpoint is reached over this, and a measured interval never

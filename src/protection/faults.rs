@@ -4,8 +4,8 @@
 
 /// A set of fault bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(transparent))]
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
+#[serde(transparent)]
 pub struct FaultSet(pub u32);
 
 impl FaultSet {

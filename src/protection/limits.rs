@@ -3,8 +3,8 @@
 
 /// A set of limit bits, refreshed every position period (sticky within it).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(transparent))]
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
+#[serde(transparent)]
 pub struct LimitFlags(pub u8);
 
 impl LimitFlags {

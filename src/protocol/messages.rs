@@ -1,0 +1,360 @@
+//! The messages of the drive protocol: what a host may ask, what the drive
+//! answers. One definition for the firmware, the simulated drive and the
+//! host tool; the schema hash in [`super::SCHEMA_HASH`] changes with any of
+//! these types, so two ends built from different definitions refuse each
+//! other at `Info` instead of misreading fields.
+//!
+//! Units are SI and in the field names, as everywhere in the core.
+
+use heapless::{String, Vec};
+use postcard_schema::Schema;
+use serde::{Deserialize, Serialize};
+
+use crate::controller::{CommandError, CommandOutcome};
+use crate::telemetry::Mode;
+
+/// Longest dotted parameter path (`control.commutation.settle_timeout_s` is 36).
+pub const PATH_MAX: usize = 48;
+/// Longest free text in a reply (an error's reason, a version string).
+pub const TEXT_MAX: usize = 48;
+/// Signals one capture records at most.
+pub const CAPTURE_SIGNALS_MAX: usize = 4;
+/// Samples per `CaptureData` reply (per signal row-major chunk), chosen so a
+/// reply stays under [`super::FRAME_MAX`] bytes.
+pub const CAPTURE_CHUNK_MAX: usize = 64;
+/// Values one telemetry frame carries at most.
+pub const TELEMETRY_VALUES_MAX: usize = 24;
+
+pub type Path = String<PATH_MAX>;
+pub type Text = String<TEXT_MAX>;
+
+/// Host → drive. `seq` is echoed in the reply, so a host can match replies
+/// to requests and see one that was lost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct RequestFrame {
+    pub seq: u16,
+    pub request: Request,
+}
+
+/// Drive → host: a reply to one request, or a frame the drive sends by
+/// itself (telemetry at the configured rate).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum DriveFrame {
+    Reply { seq: u16, reply: Reply },
+    Telemetry(TelemetryFrame),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Request {
+    /// Who the drive is, and which schema it speaks. A host checks
+    /// `schema_hash` before anything else.
+    Info,
+    /// Mode, faults, readiness and the drive clock.
+    Status,
+    /// Number of parameters (leaves of `control.*`).
+    ParamCount,
+    /// The path and type of parameter `index` (0-based, stable for a schema).
+    ParamName { index: u16 },
+    ParamGet { path: Path },
+    /// Validated as a whole set (the field named on refusal) and applied
+    /// between periods; gains apply bumplessly while running, structure
+    /// (rates, pole pairs, encoder) only with the bridge off.
+    ParamSet { path: Path, value: Value },
+    /// Write the present parameters to flash. Refused while the bridge is on.
+    Save,
+    /// Read the saved parameters from flash and apply them. Refused while the
+    /// bridge is on.
+    Load,
+    /// Back to the image's defaults (flash untouched until `Save`).
+    Defaults,
+    Command(DriveCommand),
+    /// One streamed setpoint. Answered only when refused (bandwidth: up to
+    /// 1 kHz); the host sees refusals as `Reply::Error` with this frame's seq.
+    Stream(StreamPoint),
+    /// Telemetry: which fields (bit i = [`TelemetryField`] i) and how often.
+    /// `rate_hz` 0 stops it.
+    Telemetry { fields: u32, rate_hz: u16 },
+    Capture(CaptureRequest),
+    /// Start a test signal generated in the core (exact timing).
+    Test(TestSignal),
+}
+
+/// The drive's commands, as a host names them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum DriveCommand {
+    Enable,
+    Disable,
+    /// Current-offset calibration.
+    Calibrate,
+    /// Commutation (electrical offset, direction, pole pairs).
+    Align,
+    Home,
+    /// Every start-up step still missing, in order.
+    StartUp,
+    MoveTo { position_m: f32 },
+    Jog { distance_m: f32 },
+    SetHome { position_m: f32 },
+    /// A controlled stop of a move or stream; the drive then holds.
+    Stop,
+    ClearFaults,
+    SetCompensation { enabled: bool },
+    SetPositionShift { shift_m: f32 },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct StreamPoint {
+    pub position_m: f32,
+    pub velocity_m_s: f32,
+    pub force_n: Option<f32>,
+}
+
+/// A parameter's value, typed as the parameter is.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Value {
+    F32(f32),
+    U32(u32),
+    I32(i32),
+    Bool(bool),
+    /// An enum parameter by variant index (e.g. `homing.method`: 0 hard stop,
+    /// 1 switch).
+    Variant(u8),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum ValueKind {
+    F32,
+    U32,
+    I32,
+    Bool,
+    Variant,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum CaptureRequest {
+    /// Signals, decimation (1 = every PWM period), samples per signal,
+    /// pre-trigger samples, trigger. Arms the capture.
+    Configure(CaptureConfig),
+    /// Trigger now (the `Command` trigger).
+    Trigger,
+    Status,
+    /// `count` samples of signal `signal` from sample `start` (0 = oldest).
+    Read { signal: u8, start: u16, count: u8 },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct CaptureConfig {
+    pub signals: Vec<Signal, CAPTURE_SIGNALS_MAX>,
+    pub decimation: u16,
+    pub samples: u16,
+    pub pre_trigger: u16,
+    pub trigger: CaptureTrigger,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum CaptureTrigger {
+    /// When a test signal starts.
+    TestStart,
+    /// When a fault latches.
+    Fault,
+    /// On `CaptureRequest::Trigger` (or at once if armed with it).
+    Command,
+}
+
+/// What a capture can record; each is sampled in the PWM interrupt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum Signal {
+    CurrentD,
+    CurrentQ,
+    CurrentQReference,
+    CurrentDReference,
+    VoltageD,
+    VoltageQ,
+    Speed,
+    SpeedReference,
+    MotorPosition,
+    PositionCommand,
+    PositionReference,
+    BusVoltage,
+    PhaseCurrentA,
+    PhaseCurrentB,
+    PhaseCurrentC,
+    ElectricalAngle,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum TestSignal {
+    /// A d- or q-axis current step held for `duration_s`, speed and position
+    /// loops suspended (bridge on, brake closed or load blocked by the user).
+    CurrentStep { axis_q: bool, amplitude_a: f32, duration_s: f32 },
+    /// A speed-reference step about the present speed, position loop suspended.
+    SpeedStep { amplitude_rad_s: f32, duration_s: f32 },
+    /// A position-reference step (no trajectory), the cascade closed.
+    PositionStep { distance_m: f32, duration_s: f32 },
+    /// A logarithmic sine sweep added to the reference of `target`.
+    Chirp { target: ChirpTarget, amplitude: f32, start_hz: f32, end_hz: f32, duration_s: f32 },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum ChirpTarget {
+    /// q-current reference, amps.
+    Current,
+    /// Speed reference, rad/s.
+    Speed,
+    /// Position reference, metres.
+    Position,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Reply {
+    Info(Info),
+    Status(Status),
+    /// Done, nothing to report.
+    Ok,
+    /// A command was taken; the outcome says if it was bounded.
+    Command(CommandReport),
+    ParamCount { count: u16 },
+    ParamName { index: u16, path: Path, kind: ValueKind },
+    /// A parameter's value (after `ParamSet`: as applied).
+    Param { path: Path, value: Value },
+    /// `Load`: what was applied.
+    Loaded { from_flash: bool, note: Text },
+    CaptureStatus(CaptureStatus),
+    CaptureData { signal: u8, start: u16, values: Vec<f32, CAPTURE_CHUNK_MAX> },
+    Error(Error),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct Info {
+    pub firmware_version: Text,
+    pub git_hash: Text,
+    pub schema_hash: [u8; 8],
+    pub board: Text,
+    pub mode: Mode,
+    pub faults: u32,
+    /// PWM (current-loop) rate, for interpreting captures.
+    pub pwm_frequency_hz: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct Status {
+    pub mode: Mode,
+    pub faults: u32,
+    /// `Readiness` bits: 1 calibrated, 2 commutated, 4 homed.
+    pub readiness: u8,
+    pub time_s: f32,
+    pub test_running: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum CommandReport {
+    Accepted,
+    ClampedToStroke { position_m: f32 },
+}
+
+impl From<CommandOutcome> for CommandReport {
+    fn from(o: CommandOutcome) -> Self {
+        match o {
+            CommandOutcome::Accepted => Self::Accepted,
+            CommandOutcome::ClampedToStroke { position_m } => Self::ClampedToStroke { position_m },
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct CaptureStatus {
+    pub state: CaptureState,
+    pub signals: u8,
+    pub samples: u16,
+    /// Seconds between samples (decimation / PWM rate).
+    pub sample_period_s: f32,
+    /// Index of the trigger sample within the record.
+    pub trigger_index: u16,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum CaptureState {
+    Idle,
+    Armed,
+    Triggered,
+    Done,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct TelemetryFrame {
+    pub time_s: f32,
+    /// The `fields` mask of the `Telemetry` request; `values` in bit order.
+    pub fields: u32,
+    pub values: Vec<f32, TELEMETRY_VALUES_MAX>,
+}
+
+/// Why a request was refused. Nothing of it was applied.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Error {
+    /// The frame could not be read (see [`FrameError`]); its seq is unknown,
+    /// so the reply carries seq 0.
+    Frame(FrameError),
+    /// No parameter at this path.
+    UnknownPath { path: Path },
+    /// The value has another type than the parameter.
+    WrongType { path: Path, expected: ValueKind },
+    /// The set would not validate: the field and why (NaN, out of range…).
+    InvalidParam { field: Path, reason: Text },
+    /// This parameter changes only with the bridge off.
+    NeedsBridgeOff { path: Path },
+    /// Save or load refused while the bridge is on.
+    BridgeOn,
+    /// Flash storage failed, or held no usable record (what and why).
+    Storage { reason: Text },
+    /// The controller refused the command.
+    Command(CommandError),
+    /// A stream point beyond a limit, or a stream in the wrong state.
+    Stream { reason: Text },
+    /// Capture or test request not possible now, or out of range.
+    Capture { reason: Text },
+    Test { reason: Text },
+    /// The drive is busy with a request of this kind (e.g. a save running).
+    Busy,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum FrameError {
+    /// Longer than [`super::FRAME_MAX`] before its delimiter.
+    TooLong,
+    /// Not valid COBS.
+    Cobs,
+    /// Shorter than the CRC.
+    Truncated,
+    /// CRC-32 mismatch.
+    Crc,
+    /// Valid CRC but not a message of this schema.
+    Decode,
+    /// Bytes left after the message.
+    Trailing,
+}
+
+/// The telemetry fields, bit positions of `Request::Telemetry { fields }`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+#[repr(u8)]
+pub enum TelemetryField {
+    PositionReference = 0,
+    PositionCommand,
+    PositionShift,
+    MotorPosition,
+    SpeedReference,
+    Speed,
+    CurrentD,
+    CurrentQ,
+    CurrentQReference,
+    VoltageD,
+    VoltageQ,
+    BusVoltage,
+    TerminalPosition,
+    LoadForceEstimate,
+    Mode,
+    Faults,
+    Readiness,
+}
+
+impl TelemetryField {
+    pub const COUNT: u32 = 17;
+}

@@ -1,0 +1,33 @@
+//! The drive protocol: one definition for the firmware (USART2, FDCAN1), the
+//! simulated drive (host-sim over TCP) and the host tool.
+//!
+//! - `messages`: what may be asked and answered ([`RequestFrame`],
+//!   [`DriveFrame`]);
+//! - `frame`: postcard + CRC-32 + COBS framing, and the byte-stream reader.
+//!
+//! Versioning: [`SCHEMA_HASH`] is the postcard-schema hash of the message
+//! types and of `ControlParams` (whose leaves are the parameter paths and the
+//! flash record). `Info` carries it; a host refuses a drive whose hash
+//! differs from its own, and a flash record carries [`PARAMS_SCHEMA_HASH`].
+
+pub mod frame;
+pub mod messages;
+
+pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
+pub use messages::*;
+/// The fixed-capacity types in the messages, at the version they use.
+pub use heapless;
+
+use crate::params::ControlParams;
+use postcard_schema::key::Key;
+
+/// Protocol version for humans; compatibility is decided by the hash.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Hash of everything both ends must agree on.
+pub const SCHEMA_HASH: [u8; 8] =
+    Key::for_path::<(RequestFrame, DriveFrame, ControlParams)>("cylinder-servo/protocol").to_bytes();
+
+/// Hash of the parameter set's layout: a flash record with another is
+/// never loaded.
+pub const PARAMS_SCHEMA_HASH: [u8; 8] = Key::for_path::<ControlParams>("cylinder-servo/params").to_bytes();
