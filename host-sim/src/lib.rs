@@ -7,6 +7,7 @@
 
 pub mod config;
 pub mod diagnose;
+pub mod drive;
 pub mod fault_injection;
 pub mod plant;
 pub mod platform;
@@ -14,4 +15,5 @@ pub mod power_up;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod tool;
 pub mod trainer;

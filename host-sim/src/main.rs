@@ -72,6 +72,10 @@ enum Cmd {
     /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
+    /// The drive protocol (issue 11): `drive serve` runs a simulated drive on
+    /// a TCP socket; the other subcommands are the host tool, talking to a
+    /// board (--port) or a simulated drive (--tcp). docs/host-tool.md.
+    Drive(host_sim::tool::DriveArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
@@ -119,6 +123,7 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
+        Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Platform { out, geometry, params } => {
             let g = match geometry {
                 Some(path) => host_sim::platform::Geometry::load(&path)?,

@@ -1,0 +1,216 @@
+//! The host side of the drive protocol: a link (serial port or TCP), frames
+//! in and out, requests matched to replies by `seq`, timeouts, and the
+//! schema check at connect.
+
+use anyhow::{anyhow, bail, Context, Result};
+use servo_core::protocol::{
+    self, DriveFrame, Error, Feed, FrameReader, Info, Reply, Request, RequestFrame, TelemetryFrame, FRAME_MAX,
+    SCHEMA_HASH,
+};
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read, Write};
+use std::time::{Duration, Instant};
+
+/// A byte link to a drive.
+pub trait Link: Read + Write + Send {}
+impl<T: Read + Write + Send> Link for T {}
+
+/// Where the drive is.
+#[derive(Clone, Debug)]
+pub enum Endpoint {
+    Serial { port: String, baud: u32 },
+    Tcp(String),
+}
+
+impl Endpoint {
+    pub fn open(&self) -> Result<Box<dyn Link>> {
+        Ok(match self {
+            Endpoint::Serial { port, baud } => Box::new(
+                serialport::new(port, *baud)
+                    .timeout(Duration::from_millis(5))
+                    .open()
+                    .with_context(|| format!("opening serial port {port} at {baud} Bd"))?,
+            ),
+            Endpoint::Tcp(addr) => {
+                let s = std::net::TcpStream::connect(addr).with_context(|| format!("connecting to {addr}"))?;
+                s.set_nodelay(true)?;
+                s.set_read_timeout(Some(Duration::from_millis(5)))?;
+                Box::new(s)
+            }
+        })
+    }
+}
+
+/// A reply that arrived for no pending request: a refused stream point (its
+/// seq), or a frame the drive could not read (seq 0).
+#[derive(Clone, Debug)]
+pub struct Unsolicited {
+    pub seq: u16,
+    pub error: Reply,
+}
+
+pub struct Client {
+    link: Box<dyn Link>,
+    reader: FrameReader,
+    seq: u16,
+    pub timeout: Duration,
+    /// Telemetry frames received so far (drained by the caller).
+    pub telemetry: VecDeque<TelemetryFrame>,
+    pub unsolicited: Vec<Unsolicited>,
+    pub info: Option<Info>,
+    rx: Vec<u8>,
+}
+
+impl Client {
+    /// Wraps a link without the schema check (tests of bad input).
+    pub fn raw(link: Box<dyn Link>) -> Self {
+        Self {
+            link,
+            reader: FrameReader::new(),
+            seq: 0,
+            timeout: Duration::from_secs(2),
+            telemetry: VecDeque::new(),
+            unsolicited: Vec::new(),
+            info: None,
+            rx: vec![0; 4096],
+        }
+    }
+
+    /// Opens the link, asks `Info` and refuses a drive of another schema.
+    pub fn connect(ep: &Endpoint) -> Result<Self> {
+        let mut c = Self::raw(ep.open()?);
+        // A board may hold half a frame from an earlier session: a lone
+        // delimiter ends it.
+        c.link.write_all(&[0])?;
+        let info = match c.request(Request::Info)? {
+            Reply::Info(i) => i,
+            other => bail!("Info answered with {other:?}"),
+        };
+        check_schema(&info)?;
+        c.info = Some(info);
+        Ok(c)
+    }
+
+    /// Sends one request without waiting; returns its seq.
+    pub fn send(&mut self, request: Request) -> Result<u16> {
+        self.seq = self.seq.wrapping_add(1);
+        if self.seq == 0 {
+            self.seq = 1; // 0 is the drive's "unknown seq"
+        }
+        let mut buf = [0u8; FRAME_MAX];
+        let frame = RequestFrame { seq: self.seq, request };
+        let bytes = protocol::encode(&frame, &mut buf).ok_or_else(|| anyhow!("request too large: {frame:?}"))?;
+        self.link.write_all(bytes)?;
+        Ok(self.seq)
+    }
+
+    /// Writes raw bytes (tests of corrupted frames).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> Result<()> {
+        self.link.write_all(bytes)?;
+        Ok(())
+    }
+
+    /// Reads what has arrived (waiting at most the link's read timeout);
+    /// replies go to `on_reply`, telemetry to the queue.
+    fn pump(&mut self, mut on_reply: impl FnMut(u16, Reply)) -> Result<()> {
+        let n = match self.link.read(&mut self.rx) {
+            Ok(0) => bail!("the drive closed the connection"),
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted) => 0,
+            Err(e) => return Err(e).context("reading from the drive"),
+        };
+        for i in 0..n {
+            let b = self.rx[i];
+            let frame: Result<DriveFrame, _> = match self.reader.push(b) {
+                Feed::Pending => continue,
+                Feed::Dropped(e) => Err(e),
+                Feed::Frame(f) => protocol::decode(f),
+            };
+            match frame {
+                Ok(DriveFrame::Telemetry(t)) => {
+                    self.telemetry.push_back(t);
+                }
+                Ok(DriveFrame::Reply { seq, reply }) => on_reply(seq, reply),
+                Err(e) => eprintln!("warning: dropped a frame from the drive: {e:?}"),
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads for up to `d`, collecting telemetry and unsolicited replies.
+    pub fn poll(&mut self, d: Duration) -> Result<()> {
+        let t0 = Instant::now();
+        let mut got = Vec::new();
+        loop {
+            self.pump(|seq, reply| got.push(Unsolicited { seq, error: reply }))?;
+            if t0.elapsed() >= d {
+                break;
+            }
+        }
+        self.unsolicited.extend(got);
+        Ok(())
+    }
+
+    /// Sends `request` and waits for the reply with its seq.
+    pub fn request(&mut self, request: Request) -> Result<Reply> {
+        let what = format!("{request:?}");
+        let seq = self.send(request)?;
+        let t0 = Instant::now();
+        let mut answer = None;
+        let mut other = Vec::new();
+        while answer.is_none() {
+            if t0.elapsed() > self.timeout {
+                self.unsolicited.extend(other);
+                bail!("no reply to {what} (seq {seq}) within {:.1} s", self.timeout.as_secs_f64());
+            }
+            self.pump(|s, r| if s == seq { answer = Some(r) } else { other.push(Unsolicited { seq: s, error: r }) })?;
+        }
+        self.unsolicited.extend(other);
+        Ok(answer.expect("set"))
+    }
+
+    /// `request`, with `Reply::Error` turned into an error naming it.
+    pub fn ask(&mut self, request: Request) -> Result<Reply> {
+        let what = format!("{request:?}");
+        match self.request(request)? {
+            Reply::Error(e) => Err(anyhow!("{what}: refused: {}", describe(&e))),
+            r => Ok(r),
+        }
+    }
+}
+
+pub fn check_schema(info: &Info) -> Result<()> {
+    if info.schema_hash != SCHEMA_HASH {
+        bail!(
+            "schema mismatch: the drive ({}, firmware {} {}) speaks schema {}, this tool {}; build both from the same protocol definition",
+            info.board,
+            info.firmware_version,
+            info.git_hash,
+            hex(&info.schema_hash),
+            hex(&SCHEMA_HASH)
+        );
+    }
+    Ok(())
+}
+
+pub fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// One line for a refusal.
+pub fn describe(e: &Error) -> String {
+    match e {
+        Error::Frame(f) => format!("unreadable frame ({f:?})"),
+        Error::UnknownPath { path } => format!("no parameter `{path}`"),
+        Error::WrongType { path, expected } => format!("`{path}` takes a {expected:?}"),
+        Error::InvalidParam { field, reason } => format!("`{field}`: {reason}"),
+        Error::NeedsBridgeOff { path } => format!("`{path}` changes only with the bridge off"),
+        Error::BridgeOn => "refused while the bridge is on (disable first)".into(),
+        Error::Storage { reason } => format!("storage: {reason}"),
+        Error::Command(c) => format!("command refused: {c:?}"),
+        Error::Stream { reason } => format!("stream: {reason}"),
+        Error::Capture { reason } => format!("capture: {reason}"),
+        Error::Test { reason } => format!("test: {reason}"),
+        Error::Busy => "busy".into(),
+    }
+}
