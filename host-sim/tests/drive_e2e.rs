@@ -188,7 +188,7 @@ fn a_stream_that_jumps_beyond_the_speed_limit_is_bounded_and_reported() {
     };
     c.ask(Request::Telemetry { fields: 1 << protocol::TelemetryField::Speed as u32, rate_hz: 1000 }).unwrap();
     let r = stream::send(&mut c, &rows, false).unwrap();
-    println!("refusals: {:?}", r.refusals);
+    println!("refusals: {:?}, aborted at {:?}", r.grouped(), r.aborted_at_row);
     let w = c.telemetry.iter().map(|t| t.values[0].abs()).fold(0.0f32, f32::max);
     println!("peak speed {w} rad/s (limit {speed_max})");
     assert!(w <= speed_max * 1.05, "{w} > {speed_max}");
@@ -198,7 +198,12 @@ fn a_stream_that_jumps_beyond_the_speed_limit_is_bounded_and_reported() {
         Reply::Status(s) => s,
         r => panic!("{r:?}"),
     };
+    println!("faults: {:?}", servo_core::FaultSet(st.faults).names().collect::<Vec<_>>());
     assert!(!r.refusals.is_empty() || st.faults != 0, "a 20 m/s jump passed silently: {st:?}");
+    // Sending stops soon after the drive stops taking points.
+    if let Some(row) = r.aborted_at_row {
+        assert!(r.sent < rows.len() && row < rows.len(), "{row}");
+    }
 }
 
 #[test]

@@ -235,10 +235,16 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
         DriveCmd::Stream { file, asap } => {
             let rows = stream::read_csv(&file)?;
             let r = stream::send(c, &rows, !asap)?;
-            for (row, why) in &r.refusals {
-                eprintln!("{}:{row}: {why}", file.display());
+            for g in r.grouped() {
+                eprintln!("{}: {g}", file.display());
             }
-            println!("{} points sent over {:.3} s ({:.3} s wall), {} refused or bounded", r.sent, r.duration_s, r.wall_s, r.refusals.len());
+            if let Some(row) = r.aborted_at_row {
+                eprintln!("{}: the drive stopped taking points at row {row}; sending ended there", file.display());
+            }
+            println!("{} of {} points sent over {:.3} s ({:.3} s wall), {} refused or bounded", r.sent, r.rows, r.duration_s, r.wall_s, r.refusals.len());
+            if r.aborted_at_row.is_some() {
+                bail!("stream aborted");
+            }
         }
         DriveCmd::Step { target, amplitude, duration, out, params } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;

@@ -72,6 +72,32 @@ pub struct StreamReport {
     pub wall_s: f64,
     /// (row, reason) of every point the drive refused or bounded.
     pub refusals: Vec<(usize, String)>,
+    /// The drive stopped taking points (faulted, disabled): sending ended
+    /// at this row.
+    pub aborted_at_row: Option<usize>,
+}
+
+impl StreamReport {
+    /// Refusals with consecutive rows of the same reason merged:
+    /// `rows 204–400: command refused: NotRunning`.
+    pub fn grouped(&self) -> Vec<String> {
+        let mut out: Vec<(usize, usize, &str)> = Vec::new();
+        for (row, why) in &self.refusals {
+            match out.last_mut() {
+                Some((_, last, w)) if *w == why.as_str() && *last + 1 == *row => *last = *row,
+                _ => out.push((*row, *row, why.as_str())),
+            }
+        }
+        out.into_iter()
+            .map(|(a, b, w)| if a == b { format!("row {a}: {w}") } else { format!("rows {a}–{b}: {w}") })
+            .collect()
+    }
+}
+
+/// A refusal after which further points are pointless.
+fn stops_stream(r: &Reply) -> bool {
+    use servo_core::CommandError as E;
+    matches!(r, Reply::Error(servo_core::protocol::Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed)))
 }
 
 /// Sends the rows as stream points. `paced`: at the rows' times on the
@@ -80,7 +106,12 @@ pub struct StreamReport {
 pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamReport> {
     let t0 = Instant::now();
     let mut seq_row = HashMap::new();
+    let mut aborted_at_row = None;
     for (i, r) in rows.iter().enumerate() {
+        if let Some(u) = client.unsolicited.iter().find(|u| stops_stream(&u.error)) {
+            aborted_at_row = Some(seq_row.get(&u.seq).copied().unwrap_or(i + 1));
+            break;
+        }
         if paced {
             let due = Duration::from_secs_f64((r.t_s - rows[0].t_s).max(0.0));
             while t0.elapsed() < due {
@@ -90,7 +121,7 @@ pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamRepo
                     std::thread::sleep(left - Duration::from_millis(1));
                 }
             }
-        } else if i % 64 == 0 {
+        } else if i % 16 == 0 {
             client.poll(Duration::ZERO)?;
         }
         let p = StreamPoint {
@@ -105,7 +136,8 @@ pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamRepo
     let end = client.request(Request::Command(DriveCommand::Stop));
     let mut report = StreamReport {
         rows: rows.len(),
-        sent: rows.len(),
+        sent: seq_row.len(),
+        aborted_at_row,
         duration_s: rows.last().map_or(0.0, |r| r.t_s) - rows[0].t_s,
         wall_s: t0.elapsed().as_secs_f64(),
         refusals: vec![],
