@@ -92,7 +92,7 @@ fn a_gain_set_and_saved_survives_a_restart_of_the_drive() {
     assert_eq!(c.request(Request::Save).unwrap(), Reply::Error(Error::BridgeOn));
     // Every parameter is listed with a value.
     let all = tool::param_list(&mut c).unwrap();
-    assert!(all.len() > 100 && all.iter().any(|(p, _)| p == "speed_pi.kp"), "{}", all.len());
+    assert!(all.len() > 100 && all.iter().any(|(p, _)| p == "control.speed_pi.kp"), "{}", all.len());
 }
 
 #[test]

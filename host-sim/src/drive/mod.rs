@@ -263,7 +263,12 @@ impl SimDrive {
             Request::Status => Reply::Status(self.status()),
             Request::ParamCount => Reply::ParamCount { count: params::leaves(&self.params).len() as u16 },
             Request::ParamName { index } => match params::leaves(&self.params).get(usize::from(index)) {
-                Some((p, kind)) => Reply::ParamName { index, path: path_of(p), kind: *kind },
+                Some((p, kind)) => {
+                    // `control.` + path, unless that overflows PATH_MAX.
+                    let full = format!("control.{p}");
+                    let path = if full.len() <= protocol::PATH_MAX { full } else { p.clone() };
+                    Reply::ParamName { index, path: path_of(&path), kind: *kind }
+                }
                 None => Reply::Error(Error::UnknownPath { path: path_of(&format!("#{index}")) }),
             },
             Request::ParamGet { path } => match params::get(&self.params, &path) {

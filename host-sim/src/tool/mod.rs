@@ -307,12 +307,18 @@ pub fn param_list(c: &mut Client) -> Result<Vec<(String, Value)>> {
     Ok(out)
 }
 
-/// A path as sent: without the optional `control.` prefix (the longest leaf,
-/// `drive_train.friction_feedforward_speed_rad_s`, fits `PATH_MAX` only so).
+/// A path as sent: with the `control.` prefix (the rig file's table, as the
+/// drive names its paths); without it only if it would not fit `PATH_MAX`
+/// (older drives, whose limit was 48).
 fn path_arg(p: &str) -> Result<servo_core::protocol::Path> {
-    let p = params::normalise(p);
+    let bare = params::normalise(p);
+    let full = format!("control.{bare}");
     let mut s = servo_core::protocol::heapless::String::new();
-    s.push_str(p).map_err(|_| anyhow!("path `{p}` longer than {} characters", servo_core::protocol::PATH_MAX))?;
+    if s.push_str(&full).is_ok() {
+        return Ok(s);
+    }
+    s.clear();
+    s.push_str(bare).map_err(|_| anyhow!("path `{p}` longer than {} characters", servo_core::protocol::PATH_MAX))?;
     Ok(s)
 }
 
