@@ -213,7 +213,7 @@ impl IsrState {
                 hw_overcurrent_armed: self.hw_ocp_armed,
                 hw_overcurrent_tripped: self.hw_trip,
             },
-            drive: None,
+            ..Snapshot::INITIAL
         }
     }
 }
