@@ -100,6 +100,8 @@ fn short_circuit_speed_max_rad_s(p: &ControlParams) -> f32 {
 }
 
 /// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
+/// Not inlined: `Derived::of` calls it seven times, once, at start-up.
+#[inline(never)]
 fn periods(duration_s: f32, period_s: f32) -> u32 {
     let n = crate::math::clamp(duration_s / period_s, 1.0, u32::MAX as f32);
     let whole = n as u32;
