@@ -413,6 +413,16 @@ impl Controller {
         }
     }
 
+    /// [`Controller::step`] as a function of its own, for a caller built
+    /// for size: the firmware image (firmware/Cargo.toml, opt-level "z")
+    /// calls this from the PWM interrupt, so the period's code is compiled
+    /// with the core's settings ("s", for speed) instead of being inlined
+    /// into the interrupt and compiled for size there. Costs a call.
+    #[inline(never)]
+    pub fn step_out_of_line(&mut self, s: &SensorSample) -> PwmCommand {
+        self.step(s)
+    }
+
     /// Advances one PWM period. Called from the ADC interrupt; bounded time,
     /// no waiting, no panics.
     pub fn step(&mut self, s: &SensorSample) -> PwmCommand {
