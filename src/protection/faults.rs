@@ -217,10 +217,12 @@ fault_names! {
 
 // `ALL` (and so `FaultName::ALL`) is in bit order: bit i is named by entry i.
 const _: () = {
-    let mut i = 0;
-    while i < FaultSet::ALL.len() {
-        assert!(FaultSet::ALL[i].0 .0 == 1 << i, "FaultSet::ALL must list the faults in bit order");
-        i += 1;
+    let mut rest: &[(FaultSet, &str)] = &FaultSet::ALL;
+    let mut bit = 1u32;
+    while let [(fault, _), tail @ ..] = rest {
+        assert!(fault.0 == bit, "FaultSet::ALL must list the faults in bit order");
+        bit = bit.wrapping_shl(1);
+        rest = tail;
     }
 };
 
@@ -232,14 +234,16 @@ impl defmt::Format for FaultSet {
             return;
         }
         let mut first = true;
-        for (i, name) in FaultName::ALL.iter().enumerate() {
-            if self.0 & (1 << i) != 0 {
+        let mut bit = 1u32;
+        for name in FaultName::ALL.iter() {
+            if self.0 & bit != 0 {
                 if !first {
                     defmt::write!(f, "|");
                 }
                 first = false;
                 defmt::write!(f, "{}", name);
             }
+            bit = bit.wrapping_shl(1);
         }
     }
 }
