@@ -100,6 +100,8 @@ fn short_circuit_speed_max_rad_s(p: &ControlParams) -> f32 {
 }
 
 /// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
+/// Not inlined: `Derived::of` calls it seven times, once, at start-up.
+#[inline(never)]
 fn periods(duration_s: f32, period_s: f32) -> u32 {
     let n = crate::math::clamp(duration_s / period_s, 1.0, u32::MAX as f32);
     let whole = n as u32;
@@ -409,6 +411,16 @@ impl Controller {
         } else {
             Ok(CommandOutcome::Accepted)
         }
+    }
+
+    /// [`Controller::step`] as a function of its own, for a caller built
+    /// for size: the firmware image (firmware/Cargo.toml, opt-level "z")
+    /// calls this from the PWM interrupt, so the period's code is compiled
+    /// with the core's settings ("s", for speed) instead of being inlined
+    /// into the interrupt and compiled for size there. Costs a call.
+    #[inline(never)]
+    pub fn step_out_of_line(&mut self, s: &SensorSample) -> PwmCommand {
+        self.step(s)
     }
 
     /// Advances one PWM period. Called from the ADC interrupt; bounded time,
