@@ -13,8 +13,10 @@ use serde::{Deserialize, Serialize};
 use crate::controller::{CommandError, CommandOutcome};
 use crate::telemetry::Mode;
 
-/// Longest dotted parameter path (`control.commutation.settle_timeout_s` is 36).
-pub const PATH_MAX: usize = 48;
+/// Longest dotted parameter path
+/// (`control.drive_train.friction_feedforward_speed_rad_s` is 52; checked
+/// at compile time in `params.rs`).
+pub const PATH_MAX: usize = 64;
 /// Longest free text in a reply (an error's reason, a version string).
 pub const TEXT_MAX: usize = 48;
 /// Signals one capture records at most.

@@ -12,6 +12,7 @@
 
 pub mod frame;
 pub mod messages;
+pub mod params;
 
 pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
 pub use messages::*;
