@@ -77,10 +77,11 @@ pub fn encode<'a>(p: &ControlParams, buf: &'a mut [u8; RECORD_MAX]) -> Result<&'
         *slot = *b;
     }
     head.copy_from_slice(&header);
-    let end = HEADER + n;
+    let end = HEADER.saturating_add(n);
+    let total = end.saturating_add(CRC_BYTES);
     let crc = CRC.checksum(buf.get(..end).ok_or(RecordError::TooLarge)?);
-    buf.get_mut(end..end + CRC_BYTES).ok_or(RecordError::TooLarge)?.copy_from_slice(&crc.to_le_bytes());
-    buf.get(..end + CRC_BYTES).ok_or(RecordError::TooLarge)
+    buf.get_mut(end..total).ok_or(RecordError::TooLarge)?.copy_from_slice(&crc.to_le_bytes());
+    buf.get(..total).ok_or(RecordError::TooLarge)
 }
 
 /// Reads a record: the parameters, validated, or why not.
@@ -91,7 +92,7 @@ pub fn decode(record: &[u8]) -> Result<ValidatedParams, RecordError> {
     if record.len() < HEADER + CRC_BYTES {
         return Err(RecordError::TooShort);
     }
-    let (covered, crc_bytes) = record.split_at(record.len() - CRC_BYTES);
+    let (covered, crc_bytes) = record.split_at(record.len().saturating_sub(CRC_BYTES));
     if covered.get(..4) != Some(&MAGIC[..]) {
         return Err(RecordError::Magic);
     }

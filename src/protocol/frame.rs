@@ -26,7 +26,7 @@ const CRC_BYTES: usize = 4;
 pub fn encode<'a, T: Serialize>(msg: &T, buf: &'a mut [u8]) -> Option<&'a [u8]> {
     let mut raw = [0u8; FRAME_MAX];
     let body = postcard::to_slice_crc32(msg, &mut raw, CRC.digest()).ok()?;
-    if cobs::max_encoding_length(body.len()) + 1 > FRAME_MAX {
+    if cobs::max_encoding_length(body.len()) >= FRAME_MAX {
         return None;
     }
     let n = cobs::try_encode(body, buf).ok()?;
@@ -45,7 +45,7 @@ pub fn decode<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
     if bytes.len() < CRC_BYTES {
         return Err(FrameError::Truncated);
     }
-    let (body, crc_bytes) = bytes.split_at(bytes.len() - CRC_BYTES);
+    let (body, crc_bytes) = bytes.split_at(bytes.len().saturating_sub(CRC_BYTES));
     let mut crc_le = [0u8; CRC_BYTES];
     crc_le.copy_from_slice(crc_bytes);
     if CRC.checksum(body) != u32::from_le_bytes(crc_le) {
@@ -108,7 +108,7 @@ impl FrameReader {
         match self.buf.get_mut(self.len) {
             Some(slot) if !self.overflowed => {
                 *slot = byte;
-                self.len += 1;
+                self.len = self.len.saturating_add(1);
             }
             _ => self.overflowed = true,
         }

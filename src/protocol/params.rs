@@ -158,7 +158,7 @@ fn nth_leaf(schema: &'static Schema, left: &mut usize, path: &mut Path) -> bool 
     for child in children.iter() {
         let leaves = leaf_count(child.schema());
         if *left >= leaves {
-            *left -= leaves;
+            *left = left.saturating_sub(leaves);
             continue;
         }
         if path.push('.').is_err() || path.push_str(child.name()).is_err() {
