@@ -67,8 +67,9 @@ impl Controller {
     fn after_structural_change(&mut self, old: &ControlParams) {
         let new = self.params;
         self.speed_loop = SpeedLoop::new(&new);
-        self.speed_countdown = self.speed_countdown.clamp(1, new.rates.speed_loop_divider);
-        self.position_countdown = self.position_countdown.clamp(1, self.derived.speed_ticks_per_position_tick);
+        // (`min`, not `clamp`: no panic path even for a divider of 0.)
+        self.speed_countdown = self.speed_countdown.min(new.rates.speed_loop_divider).max(1);
+        self.position_countdown = self.position_countdown.min(self.derived.speed_ticks_per_position_tick).max(1);
         let angle_changed = old.motor.pole_pairs != new.motor.pole_pairs
             || old.encoder.counts_per_rev != new.encoder.counts_per_rev
             || old.encoder.direction != new.encoder.direction

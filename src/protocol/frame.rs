@@ -40,7 +40,7 @@ pub fn decode<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
     if frame.len() >= FRAME_MAX {
         return Err(FrameError::TooLong);
     }
-    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+    let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
     let bytes = frame.get(..n).ok_or(FrameError::Cobs)?;
     if bytes.len() < CRC_BYTES {
         return Err(FrameError::Truncated);
@@ -56,6 +56,40 @@ pub fn decode<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
         return Err(FrameError::Trailing);
     }
     Ok(msg)
+}
+
+/// COBS-decodes `buf` in place; the decoded length, or `None` if it is not
+/// valid COBS (a zero inside, a code running past the end). Written out
+/// with checked accesses (the `cobs` crate's decoder indexes, which the
+/// panic-never proof cannot see through); the same result otherwise.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
+    let n = buf.len();
+    let (mut src, mut dst) = (0usize, 0usize);
+    while src < n {
+        let code = usize::from(*buf.get(src)?);
+        if code == 0 {
+            return None;
+        }
+        src = src.saturating_add(1);
+        let end = src.saturating_add(code).saturating_sub(1);
+        if end > n {
+            return None;
+        }
+        while src < end {
+            let b = *buf.get(src)?;
+            if b == 0 {
+                return None;
+            }
+            *buf.get_mut(dst)? = b;
+            src = src.saturating_add(1);
+            dst = dst.saturating_add(1);
+        }
+        if code != 0xFF && src < n {
+            *buf.get_mut(dst)? = 0;
+            dst = dst.saturating_add(1);
+        }
+    }
+    Some(dst)
 }
 
 /// Collects bytes from a transport into frames. Feed it what arrives; it
