@@ -13,9 +13,11 @@ mod cascade;
 mod checks;
 mod commands;
 mod lifecycle;
+mod params_apply;
 mod reactions;
 
 pub use commands::{Command, CommandError, CommandOutcome};
+pub use params_apply::ApplyError;
 
 use crate::compensation::Compensator;
 use crate::foc::{CurrentLoop, Dq};
@@ -211,6 +213,8 @@ pub struct Controller {
     /// The planned move's velocity this position period, before any
     /// slowing by the regeneration bound.
     planned_velocity_m_s: f32,
+    /// `Command::Stop` is ramping the reference down (`stop`) to rest.
+    commanded_stop: bool,
 }
 
 impl Controller {
@@ -312,6 +316,7 @@ impl Controller {
             telemetry: Telemetry::default(),
             stream: SetpointStream::default(),
             planned_velocity_m_s: 0.0,
+            commanded_stop: false,
             params,
         }
     }
@@ -366,7 +371,7 @@ impl Controller {
 
     /// True while a planned move has time left or a stream runs.
     pub fn move_in_progress(&self) -> bool {
-        self.stream.active() || self.move_time_s() < self.trajectory.duration_s()
+        self.stream.active() || self.commanded_stop || self.move_time_s() < self.trajectory.duration_s()
     }
 
     /// Time into the present move (its clock, held back while regeneration
@@ -488,7 +493,7 @@ impl Controller {
 /// q current that holds `startup.expected_load_force_n` at the screw, in
 /// the direction the encoder counts up (positive rotation extends the rod,
 /// a positive load opposes extension).
-fn expected_load_current_q_a(p: &ControlParams) -> f32 {
+pub(super) fn expected_load_current_q_a(p: &ControlParams) -> f32 {
     let torque = p.startup.expected_load_force_n * p.metres_per_rad();
     torque / p.torque_constant_n_m_a()
 }
