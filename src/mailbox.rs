@@ -214,8 +214,10 @@ impl<T: Copy> TripleBuffer<T> {
     /// publication.
     pub const fn new(initial: T) -> Self {
         Self {
-            // Writer starts on buffer 0, the middle is 1, the reader on 2.
-            middle: AtomicU8::new(1),
+            // Writer starts on buffer 1, the middle is 0, the reader on 2:
+            // with a zero `initial` the whole buffer is zero bytes (`.bss`,
+            // no flash for initial values).
+            middle: AtomicU8::new(0),
             split: AtomicBool::new(false),
             buffers: [UnsafeCell::new(initial), UnsafeCell::new(initial), UnsafeCell::new(initial)],
         }
@@ -226,7 +228,7 @@ impl<T: Copy> TripleBuffer<T> {
         if self.split.swap(true, Ordering::AcqRel) {
             return None;
         }
-        Some((TripleWriter { tb: self, back: 0 }, TripleReader { tb: self, front: 2 }))
+        Some((TripleWriter { tb: self, back: 1 }, TripleReader { tb: self, front: 2 }))
     }
 
     /// Buffer `index` (0..=2; anything else maps to 2, which cannot happen

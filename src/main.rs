@@ -59,6 +59,15 @@ const STARTUP_POLL: Duration = Duration::from_millis(10);
 
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
+    // `run` returns only to park: one `park` future in the task, not one
+    // per way of failing (each inlined copy cost ≈ 120 bytes of flash).
+    let dog = run().await;
+    park(dog).await
+}
+
+/// Brings the drive up and then serves it for ever; returns only when the
+/// start-up failed, with the watchdog if it runs already, to be parked.
+async fn run() -> Option<Watchdog> {
     // Priorities before `init` enables the time driver's interrupt: from the
     // first instant, nothing but the PWM interrupt sits at priority 0.
     hw::set_interrupt_priorities();
@@ -86,7 +95,7 @@ async fn main(_spawner: Spawner) {
         Ok(b) => b,
         Err(e) => {
             error!("board bring-up failed: {} (bridge off, brake closed)", e);
-            park(None).await
+            return None;
         }
     };
     if let Some(irq) = masking::unmasked_interrupt(pac::Interrupt::ADC1_2 as u16) {
@@ -104,7 +113,7 @@ async fn main(_spawner: Spawner) {
     dog.feed_if_isr_alive();
     if board.snapshot().seq == 0 {
         error!("the PWM interrupt is not running: bridge off; the watchdog will reset");
-        park(Some(dog)).await
+        return Some(dog);
     }
     let pwm_timer_hz = board.pwm_timer_hz();
     let status = board.status();
@@ -121,7 +130,7 @@ async fn main(_spawner: Spawner) {
     // Current offsets with the bridge off.
     if let Err(e) = board.begin_offset_calibration(OFFSET_CALIBRATION_SAMPLES) {
         error!("the PWM interrupt did not take the calibration request: {} (bridge off)", e);
-        park(Some(dog)).await
+        return Some(dog);
     }
     let offsets = loop {
         Timer::after(STARTUP_POLL).await;
@@ -131,7 +140,7 @@ async fn main(_spawner: Spawner) {
             Calibration::Done { offset_codes } => break offset_codes,
             Calibration::Failed { offset_codes } => {
                 error!("current offsets implausible {} (codes): bridge stays off", offset_codes);
-                park(Some(dog)).await
+                return Some(dog);
             }
         }
     };
@@ -170,7 +179,7 @@ async fn main(_spawner: Spawner) {
         dog.feed_if_isr_alive();
 
         let snapshot = board.snapshot();
-        let Some((telemetry, _moving)) = snapshot.drive else {
+        let Some((telemetry, _moving)) = snapshot.drive() else {
             continue;
         };
         let mode = telemetry.mode;

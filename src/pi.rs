@@ -30,6 +30,18 @@ impl Pi {
         self.integral = value;
     }
 
+    /// A proportional gain change from `kp_old` to `kp_new` that leaves the
+    /// output for `error` where it was (bumpless transfer): the integrator
+    /// takes up the difference. An integral gain change needs nothing: the
+    /// integrator holds `∫ki·e dt`, not `∫e dt`, so a new `ki` acts only on
+    /// the error still to come.
+    pub fn retune(&mut self, kp_old: f32, kp_new: f32, error: f32) {
+        let shift = (kp_old - kp_new) * error;
+        if shift.is_finite() {
+            self.integral += shift;
+        }
+    }
+
     pub fn integral(&self) -> f32 {
         self.integral
     }

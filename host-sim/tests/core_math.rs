@@ -1,6 +1,6 @@
 //! The core's f32 maths against f64 references.
 
-use servo_core::math::{cbrt, clamp, exp_neg, floor, round, sincos, sqrt, tan};
+use servo_core::math::{atan2, cbrt, clamp, exp_neg, floor, round, sincos, sqrt, tan};
 
 #[test]
 fn sincos_is_within_2e7_of_f64_over_many_turns() {
@@ -52,4 +52,40 @@ fn floor_round_clamp_never_surprise() {
         let y = clamp(x, 1.0, -1.0);
         assert!(y == 1.0 || y == -1.0, "{x} -> {y}");
     }
+}
+
+#[test]
+fn atan2_is_within_3_5e7_of_f64_in_every_quadrant() {
+    let mut worst: f64 = 0.0;
+    let mut worst_libm: f64 = 0.0;
+    for k in 0..400_000 {
+        // Angles all round the circle, radii over six decades.
+        let phi = k as f64 * (std::f64::consts::TAU / 400_000.0) - std::f64::consts::PI;
+        let r = 10f64.powf((k % 61) as f64 * 0.1 - 3.0);
+        let (y, x) = ((r * phi.sin()) as f32, (r * phi.cos()) as f32);
+        let want = f64::from(y).atan2(f64::from(x));
+        let got = f64::from(atan2(y, x));
+        // On the circle: +π and −π are the same direction.
+        let d = got - want;
+        let err = if d.abs() > std::f64::consts::PI { (d.abs() - std::f64::consts::TAU).abs() } else { d.abs() };
+        worst = worst.max(err);
+        worst_libm = worst_libm.max((f64::from(libm::atan2f(y, x)) - want).abs());
+    }
+    // Near ±π an f32 ulp is 2.4e-7 (libm's atan2f is off by that much too).
+    assert!(worst < 3.5e-7, "worst {worst:e} (libm's atan2f: {worst_libm:e})");
+}
+
+#[test]
+fn atan2_edges_match_libm() {
+    use std::f32::consts::{FRAC_PI_2, PI};
+    for (y, x) in [(0.0f32, 1.0f32), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0), (1.0, 0.0), (-1.0, 0.0), (1.0, -0.0)] {
+        assert_eq!(atan2(y, x).to_bits(), libm::atan2f(y, x).to_bits(), "atan2({y}, {x})");
+    }
+    assert_eq!(atan2(0.0, 0.0).to_bits(), 0.0f32.to_bits());
+    assert_eq!(atan2(-0.0, 0.0).to_bits(), (-0.0f32).to_bits());
+    assert_eq!(atan2(0.0, -0.0), PI);
+    assert_eq!(atan2(-0.0, -0.0), -PI);
+    assert_eq!(atan2(1.0, f32::INFINITY), 0.0);
+    assert_eq!(atan2(f32::INFINITY, 1.0), FRAC_PI_2);
+    assert!(atan2(f32::NAN, 1.0).is_nan() && atan2(1.0, f32::NAN).is_nan());
 }

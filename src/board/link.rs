@@ -21,7 +21,7 @@
 
 use cortex_m::peripheral::DWT;
 use servo_core::mailbox::{Handoff, Slot, SlotReceiver, SlotSender, TripleBuffer, TripleReader, TripleWriter};
-use servo_core::{Command, CommandError, CommandOutcome, Controller, Telemetry};
+use servo_core::{Command, CommandError, CommandOutcome, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
 
 use super::BoardStatus;
 
@@ -100,9 +100,14 @@ pub struct Snapshot {
     pub calibration: CalibrationSums,
     pub offset_codes: [f32; 3],
     pub status: BoardStatus,
-    /// The drive's telemetry and whether a move is in progress; `None` until
-    /// the controller is installed.
-    pub drive: Option<(Telemetry, bool)>,
+    /// Whether a controller is installed: until then `drive_record` is
+    /// not the drive's. Kept apart from the record (not an `Option`) so that
+    /// [`Snapshot::INITIAL`] is all zero bytes and `SNAPSHOTS` lives in
+    /// `.bss`: an `Option`'s `None` would be a non-zero niche value, and the
+    /// three initial copies would then take 400 bytes of flash (`.data`).
+    pub(crate) drive_installed: bool,
+    /// The drive's telemetry and whether a move is in progress.
+    pub(crate) drive_record: (Telemetry, bool),
 }
 
 impl Snapshot {
@@ -117,8 +122,39 @@ impl Snapshot {
             hw_overcurrent_armed: false,
             hw_overcurrent_tripped: false,
         },
-        drive: None,
+        drive_installed: false,
+        drive_record: (
+            Telemetry {
+                time_s: 0.0,
+                mode: Mode::Disabled,
+                position_reference_m: 0.0,
+                position_command_m: 0.0,
+                position_shift_m: 0.0,
+                motor_position_m: 0.0,
+                motor_angle_rad: 0.0,
+                speed_reference_rad_s: 0.0,
+                speed_rad_s: 0.0,
+                current_d_a: 0.0,
+                current_q_a: 0.0,
+                current_q_reference_a: 0.0,
+                voltage_d_v: 0.0,
+                voltage_q_v: 0.0,
+                bus_voltage_v: 0.0,
+                terminal_position_m: None,
+                load_force_estimate_n: 0.0,
+                faults: FaultSet::NONE,
+                limits: LimitFlags::NONE,
+                readiness: Readiness::NONE,
+            },
+            false,
+        ),
     };
+
+    /// The drive's telemetry and whether a move is in progress; `None` until
+    /// the controller is installed.
+    pub fn drive(&self) -> Option<(Telemetry, bool)> {
+        if self.drive_installed { Some(self.drive_record) } else { None }
+    }
 }
 
 static REQUESTS: Slot<Envelope<Request>> = Slot::new();
@@ -195,7 +231,10 @@ impl IsrLink {
     pub fn publish(&mut self, mut snapshot: Snapshot) {
         self.published_seq = self.published_seq.wrapping_add(1);
         snapshot.seq = self.published_seq;
-        snapshot.drive = self.controller.as_deref().map(|c| (c.telemetry(), c.move_in_progress()));
+        if let Some(c) = self.controller.as_deref() {
+            snapshot.drive_installed = true;
+            snapshot.drive_record = (c.telemetry(), c.move_in_progress());
+        }
         self.snapshots.publish(snapshot);
     }
 }

@@ -110,6 +110,9 @@ impl Controller {
         if self.mode == Mode::Homing && !self.homing_backing_off {
             return self.homing_reference();
         }
+        if self.commanded_stop {
+            return self.stop_reference();
+        }
         if self.stream.active() {
             return self.stream_reference();
         }

@@ -68,6 +68,7 @@ impl Controller {
     pub(super) fn begin_stop(&mut self) {
         let v = self.speed_rad_s() * self.params.metres_per_rad();
         self.stop = StopRamp::new(self.motor_position_m(), v, self.params.faults.stop_deceleration_m_s2);
+        self.commanded_stop = false;
         // The stop's path starts here: following checks before the next
         // position period must not judge it by the command it replaced.
         self.position_command_m = self.motor_position_m();

@@ -29,6 +29,13 @@ pub enum Command {
     Stream { position_m: f32, velocity_m_s: f32, force_n: Option<f32> },
     /// Ends a stream: the drive holds where the reference rests.
     StreamEnd,
+    /// A controlled stop of whatever moves (a planned move, a jog, a
+    /// stream, homing): from the present reference and the measured
+    /// velocity down at `faults.stop_deceleration_m_s2` to rest, then
+    /// holding there, bridge on, no fault latched. Accepted with nothing
+    /// to stop; refused (`Busy`) during calibration and commutation, which
+    /// `Disable` ends instead.
+    Stop,
     /// Move by `distance_m` at no more than `homing.jog_speed_max_m_s`: the
     /// only motion a drive that is not homed may make.
     Jog { distance_m: f32 },
@@ -152,6 +159,7 @@ impl Controller {
                 }
                 Ok(CommandOutcome::Accepted)
             }
+            Command::Stop => self.stop_motion(),
             Command::Jog { distance_m } => {
                 if !distance_m.is_finite() {
                     return Err(CommandError::NotFinite);
@@ -338,6 +346,45 @@ impl Controller {
         Ok(CommandOutcome::Accepted)
     }
 
+    /// `Stop`: a stop ramp from the reference, ended in `stop_reference`.
+    fn stop_motion(&mut self) -> Result<CommandOutcome, CommandError> {
+        match self.mode {
+            Mode::Running | Mode::Preloading | Mode::Homing => {}
+            // Not moving, or already on the way to rest.
+            Mode::Disabled | Mode::Fault | Mode::Stopping | Mode::Braking => return Ok(CommandOutcome::Accepted),
+            Mode::Calibrating | Mode::Aligning => return Err(CommandError::Busy),
+        }
+        self.start_up_sequence = false;
+        if self.mode != Mode::Homing && !self.move_in_progress() {
+            return Ok(CommandOutcome::Accepted);
+        }
+        self.stream.stop();
+        self.homing_backing_off = false;
+        if self.mode == Mode::Preloading || self.brake_opening() {
+            // The move has not started: hold where it would have begun.
+            self.hold_here();
+        } else {
+            let v = self.speed_rad_s() * self.params.metres_per_rad();
+            self.stop = StopRamp::new(self.position_reference_m, v, self.params.faults.stop_deceleration_m_s2);
+            self.commanded_stop = true;
+        }
+        if self.mode == Mode::Homing {
+            self.mode = Mode::Running;
+        }
+        Ok(CommandOutcome::Accepted)
+    }
+
+    /// One position period of a commanded stop; at rest the drive holds.
+    pub(super) fn stop_reference(&mut self) -> crate::motion::TrajectorySample {
+        let r = self.stop.advance(self.derived.position_period_s);
+        if self.stop.at_rest() {
+            self.commanded_stop = false;
+            self.trajectory = ScurveMove::hold(r.position_m);
+            self.restart_move();
+        }
+        r
+    }
+
     /// Refused unless the drive is off with nothing latched.
     fn check_idle(&self) -> Result<(), CommandError> {
         if !self.faults.is_empty() {
@@ -401,6 +448,7 @@ impl Controller {
 
     /// Makes the present position the trajectory's resting point.
     pub(super) fn hold_here(&mut self) {
+        self.commanded_stop = false;
         let here = self.motor_position_m();
         self.trajectory = ScurveMove::hold(here);
         self.restart_move();

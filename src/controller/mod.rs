@@ -13,9 +13,11 @@ mod cascade;
 mod checks;
 mod commands;
 mod lifecycle;
+mod params_apply;
 mod reactions;
 
 pub use commands::{Command, CommandError, CommandOutcome};
+pub use params_apply::ApplyError;
 
 use crate::compensation::Compensator;
 use crate::foc::{CurrentLoop, Dq};
@@ -100,6 +102,8 @@ fn short_circuit_speed_max_rad_s(p: &ControlParams) -> f32 {
 }
 
 /// Whole periods of `period_s` in `duration_s`, rounded up, at least 1.
+/// Not inlined: `Derived::of` calls it seven times, once, at start-up.
+#[inline(never)]
 fn periods(duration_s: f32, period_s: f32) -> u32 {
     let n = crate::math::clamp(duration_s / period_s, 1.0, u32::MAX as f32);
     let whole = n as u32;
@@ -209,6 +213,8 @@ pub struct Controller {
     /// The planned move's velocity this position period, before any
     /// slowing by the regeneration bound.
     planned_velocity_m_s: f32,
+    /// `Command::Stop` is ramping the reference down (`stop`) to rest.
+    commanded_stop: bool,
 }
 
 impl Controller {
@@ -310,6 +316,7 @@ impl Controller {
             telemetry: Telemetry::default(),
             stream: SetpointStream::default(),
             planned_velocity_m_s: 0.0,
+            commanded_stop: false,
             params,
         }
     }
@@ -364,7 +371,7 @@ impl Controller {
 
     /// True while a planned move has time left or a stream runs.
     pub fn move_in_progress(&self) -> bool {
-        self.stream.active() || self.move_time_s() < self.trajectory.duration_s()
+        self.stream.active() || self.commanded_stop || self.move_time_s() < self.trajectory.duration_s()
     }
 
     /// Time into the present move (its clock, held back while regeneration
@@ -409,6 +416,16 @@ impl Controller {
         } else {
             Ok(CommandOutcome::Accepted)
         }
+    }
+
+    /// [`Controller::step`] as a function of its own, for a caller built
+    /// for size: the firmware image (firmware/Cargo.toml, opt-level "z")
+    /// calls this from the PWM interrupt, so the period's code is compiled
+    /// with the core's settings ("s", for speed) instead of being inlined
+    /// into the interrupt and compiled for size there. Costs a call.
+    #[inline(never)]
+    pub fn step_out_of_line(&mut self, s: &SensorSample) -> PwmCommand {
+        self.step(s)
     }
 
     /// Advances one PWM period. Called from the ADC interrupt; bounded time,
@@ -476,7 +493,7 @@ impl Controller {
 /// q current that holds `startup.expected_load_force_n` at the screw, in
 /// the direction the encoder counts up (positive rotation extends the rod,
 /// a positive load opposes extension).
-fn expected_load_current_q_a(p: &ControlParams) -> f32 {
+pub(super) fn expected_load_current_q_a(p: &ControlParams) -> f32 {
     let torque = p.startup.expected_load_force_n * p.metres_per_rad();
     torque / p.torque_constant_n_m_a()
 }

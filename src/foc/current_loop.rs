@@ -40,6 +40,13 @@ impl CurrentLoop {
         self.pi_q.reset();
     }
 
+    /// A proportional gain change, bumpless for the last current error
+    /// (reference − measured, d and q).
+    pub fn retune(&mut self, kp_old: f32, kp_new: f32, error: Dq) {
+        self.pi_d.retune(kp_old, kp_new, error.d);
+        self.pi_q.retune(kp_old, kp_new, error.q);
+    }
+
     #[inline]
     pub fn step(
         &mut self,

@@ -5,10 +5,17 @@ use crate::filters::Biquad;
 use crate::params::ControlParams;
 use crate::pi::Pi;
 
+/// Share of each new speed error in the mean a gain change transfers
+/// (0.1 at 5 kHz: ≈ 80 Hz, a 2 ms window).
+const ERROR_MEAN_SHARE: f32 = 0.1;
+
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SpeedLoop {
     pi: Pi,
     torque_filter: Biquad,
+    /// The speed error, low-passed over ≈ 2 ms (for a bumpless gain
+    /// change: its noise passes the P term once, only its mean would stay).
+    error_mean_rad_s: f32,
 }
 
 /// One speed-loop update.
@@ -22,7 +29,20 @@ pub struct SpeedLoopOutput {
 impl SpeedLoop {
     pub fn new(p: &ControlParams) -> Self {
         let rate_hz = p.rates.pwm_frequency_hz / p.rates.speed_loop_divider as f32;
-        Self { pi: Pi::new(), torque_filter: Biquad::low_pass(p.torque_filter_hz, rate_hz) }
+        Self { pi: Pi::new(), torque_filter: Biquad::low_pass(p.torque_filter_hz, rate_hz), error_mean_rad_s: 0.0 }
+    }
+
+    /// New gains and torque-filter corner between two updates, the states
+    /// kept: the PI's output for the last error stays where it was (see
+    /// [`Pi::retune`]) and a new filter starts settled at `current_q_a`,
+    /// the reference it delivered last.
+    pub fn retune(&mut self, old: &ControlParams, new: &ControlParams, current_q_a: f32) {
+        self.pi.retune(old.speed_pi.kp, new.speed_pi.kp, self.error_mean_rad_s);
+        if old.torque_filter_hz != new.torque_filter_hz {
+            let rate_hz = new.rates.pwm_frequency_hz / new.rates.speed_loop_divider as f32;
+            self.torque_filter = Biquad::low_pass(new.torque_filter_hz, rate_hz);
+            self.torque_filter.preset(current_q_a);
+        }
     }
 
     pub fn reset(&mut self) {
@@ -53,9 +73,11 @@ impl SpeedLoop {
             + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s
             + friction_ff_n_m;
         let ff_a = torque_ff / p.torque_constant_n_m_a();
+        let error = speed_reference_rad_s - speed_measured_rad_s;
+        self.error_mean_rad_s += ERROR_MEAN_SHARE * (error - self.error_mean_rad_s);
         let out = self.pi.update(
             &p.speed_pi,
-            speed_reference_rad_s - speed_measured_rad_s,
+            error,
             ff_a,
             current_min_a,
             current_max_a,

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 /// What the drive knows, and may do, when it starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct StartupParams {
     /// `encoder.electrical_offset_rad` is valid at power-up: true only for an
@@ -33,7 +33,7 @@ pub struct StartupParams {
 
 /// Current-sensor offsets, measured with the bridge off.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrationParams {
     /// Averaging time. 0.1 s (2000 samples) takes the ESC1's 29 mA code
@@ -61,7 +61,7 @@ pub struct CalibrationParams {
 /// electrical angle and back (direction and pole pairs), and hands over to
 /// field-oriented control.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct CommutationParams {
     /// Test current of the sweep. 8 A is 0.84 N·m: with the rated load's
@@ -112,9 +112,10 @@ pub enum HomingMethod {
 
 /// Homing on an incremental encoder.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct HomingParams {
+    #[tree(with = miniconf::leaf)]
     pub method: HomingMethod,
     /// −1: towards the retracted end, +1: towards the extended end.
     pub direction: i32,
@@ -145,7 +146,7 @@ pub struct HomingParams {
 
 /// The power stage's own protections.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct PowerStageParams {
     /// Heat-sink temperature where the current limit starts to fold back…

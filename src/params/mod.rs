@@ -9,6 +9,8 @@
 use core::f32::consts::PI;
 
 mod lifecycle;
+mod live;
+pub mod record;
 mod stream;
 mod validate;
 pub use lifecycle::*;
@@ -19,7 +21,7 @@ use serde::{Deserialize, Serialize};
 
 /// Electrical model of the PMSM as the controller believes it (nameplate).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct MotorParams {
     /// Pole pairs `p`.
@@ -36,7 +38,7 @@ pub struct MotorParams {
 
 /// The mechanics as the controller believes them, for feedforward and scaling.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct DriveTrainParams {
     /// Ball-screw lead `L_s`: nut travel per screw revolution.
@@ -66,7 +68,7 @@ pub struct DriveTrainParams {
 /// Loop rates. The current loop runs every PWM period; the outer loops are
 /// decimated from it so all three stay phase-locked to the ADC trigger.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct RateParams {
     /// PWM (and current-loop) frequency.
@@ -79,7 +81,7 @@ pub struct RateParams {
 
 /// Gains of one PI regulator.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct PiGains {
     /// Proportional gain (output unit per error unit).
@@ -90,7 +92,7 @@ pub struct PiGains {
 
 /// Quadrature encoder and its tracking observer (a type-2 PLL).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct EncoderParams {
     /// Counts per mechanical revolution (lines × 4).
@@ -107,7 +109,7 @@ pub struct EncoderParams {
 
 /// Jerk-limited (S-curve) trajectory limits, at the piston rod.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct TrajectoryParams {
     pub max_velocity_m_s: f32,
@@ -117,7 +119,7 @@ pub struct TrajectoryParams {
 
 /// The paper's Eq. 19 operating limits plus the inverter's.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct LimitParams {
     /// Current circle `i_d² + i_q² ≤ i_s²` (peak phase amplitude).
@@ -136,7 +138,7 @@ pub struct LimitParams {
 
 /// Thresholds that latch a fault (see `protection::faults`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct FaultParams {
     /// Instantaneous phase current trip, checked every PWM period.
@@ -189,7 +191,7 @@ pub struct FaultParams {
 /// The spring-applied holding brake on the motor shaft (power to open).
 /// A vertical leg must not drop its payload when the bridge goes off.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct BrakeParams {
     /// False: no brake; `Disable` switches the bridge off at once.
@@ -214,7 +216,7 @@ pub struct BrakeParams {
 /// continuous current, `τ dθ/dt = |i|²/I_c² − θ`; θ = 1 is the steady state
 /// at the continuous rating.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct ThermalParams {
     /// Continuous current (peak phase amplitude) the winding tolerates.
@@ -231,7 +233,7 @@ pub struct ThermalParams {
 
 /// What the hardware can take: limits above these are refused at load time.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct RatingParams {
     /// Motor peak current (demagnetisation bound), phase amplitude.
@@ -246,7 +248,7 @@ pub struct RatingParams {
 
 /// Load-force estimate from the q-axis current.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct LoadEstimateParams {
     /// First-order low-pass corner on the estimate.
@@ -255,7 +257,7 @@ pub struct LoadEstimateParams {
 
 /// Terminal-error compensation by the observer (see `compensation`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct CompensationParams {
     /// Compensation on at power-up (it can be switched at run time).
@@ -268,7 +270,7 @@ pub struct CompensationParams {
 
 /// The whole parameter set of the control core.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct ControlParams {
     pub motor: MotorParams,

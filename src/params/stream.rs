@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(Serialize, Deserialize, postcard_schema::Schema)]
+#[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
 pub struct StreamParams {
     /// The slowest setpoint rate the drive interpolates over (100 Hz): the

@@ -112,39 +112,6 @@ impl FaultSet {
             | Self::LIFECYCLE_TIMEOUT.0,
     );
 
-    /// Every fault, with a short name for logs and reports.
-    pub const ALL: [(Self, &'static str); 29] = [
-        (Self::OVERCURRENT, "overcurrent"),
-        (Self::BUS_OVERVOLTAGE, "bus_overvoltage"),
-        (Self::BUS_UNDERVOLTAGE, "bus_undervoltage"),
-        (Self::ENCODER_JUMP, "encoder_jump"),
-        (Self::POSITION_FOLLOWING, "position_following"),
-        (Self::STROKE_OVERTRAVEL, "stroke_overtravel"),
-        (Self::NON_FINITE_INPUT, "non_finite_input"),
-        (Self::INVALID_PARAMS, "invalid_params"),
-        (Self::ISR_OVERRUN, "isr_overrun"),
-        (Self::MOTOR_OVERTEMP, "motor_overtemp"),
-        (Self::SPEED_FOLLOWING, "speed_following"),
-        (Self::ENCODER_LOST, "encoder_lost"),
-        (Self::SOFT_LIMIT, "soft_limit"),
-        (Self::OBSERVER_OUT_OF_BOUNDS, "observer_out_of_bounds"),
-        (Self::WATCHDOG_RESET, "watchdog_reset"),
-        (Self::CURRENT_SENSOR, "current_sensor"),
-        (Self::OPEN_PHASE, "open_phase"),
-        (Self::BRIDGE_BREAK, "bridge_break"),
-        (Self::STOP_FAILED, "stop_failed"),
-        (Self::CALIBRATION_FAILED, "calibration_failed"),
-        (Self::ENCODER_NO_SIGNAL, "encoder_no_signal"),
-        (Self::BRAKE_SLIP, "brake_slip"),
-        (Self::WRONG_DIRECTION, "wrong_direction"),
-        (Self::WRONG_POLE_PAIRS, "wrong_pole_pairs"),
-        (Self::ROTOR_BLOCKED, "rotor_blocked"),
-        (Self::HOMING_FAILED, "homing_failed"),
-        (Self::LIFECYCLE_TIMEOUT, "lifecycle_timeout"),
-        (Self::POWER_STAGE_OVERTEMP, "power_stage_overtemp"),
-        (Self::STREAM_TIMEOUT, "stream_timeout"),
-    ];
-
     pub const fn is_empty(self) -> bool {
         self.0 == 0
     }
@@ -188,6 +155,77 @@ impl FaultSet {
     }
 }
 
+/// One list gives both [`FaultSet::ALL`] (names as strings, for the host's
+/// reports) and, with the `defmt` feature, `FaultName`: the same names as a
+/// C-like enum, in the same (bit) order. defmt interns an enum's variant
+/// names in its `.defmt` section, which is not flashed, and sends only the
+/// index; the strings of `ALL` would take ≈ 650 bytes of flash (text and
+/// pointer table) in the firmware image.
+macro_rules! fault_names {
+    ($($bit:ident => $name:ident,)*) => {
+        impl FaultSet {
+            /// Every fault, with a short name for logs and reports.
+            pub const ALL: [(Self, &'static str); 29] = [$((Self::$bit, stringify!($name)),)*];
+        }
+
+        #[cfg(feature = "defmt")]
+        #[allow(non_camel_case_types)]
+        #[derive(Clone, Copy, defmt::Format)]
+        enum FaultName {
+            $($name,)*
+        }
+
+        #[cfg(feature = "defmt")]
+        impl FaultName {
+            /// Bit `i` of a [`FaultSet`] is named by `ALL[i]`.
+            const ALL: [Self; 29] = [$(Self::$name,)*];
+        }
+    };
+}
+
+fault_names! {
+    OVERCURRENT => overcurrent,
+    BUS_OVERVOLTAGE => bus_overvoltage,
+    BUS_UNDERVOLTAGE => bus_undervoltage,
+    ENCODER_JUMP => encoder_jump,
+    POSITION_FOLLOWING => position_following,
+    STROKE_OVERTRAVEL => stroke_overtravel,
+    NON_FINITE_INPUT => non_finite_input,
+    INVALID_PARAMS => invalid_params,
+    ISR_OVERRUN => isr_overrun,
+    MOTOR_OVERTEMP => motor_overtemp,
+    SPEED_FOLLOWING => speed_following,
+    ENCODER_LOST => encoder_lost,
+    SOFT_LIMIT => soft_limit,
+    OBSERVER_OUT_OF_BOUNDS => observer_out_of_bounds,
+    WATCHDOG_RESET => watchdog_reset,
+    CURRENT_SENSOR => current_sensor,
+    OPEN_PHASE => open_phase,
+    BRIDGE_BREAK => bridge_break,
+    STOP_FAILED => stop_failed,
+    CALIBRATION_FAILED => calibration_failed,
+    ENCODER_NO_SIGNAL => encoder_no_signal,
+    BRAKE_SLIP => brake_slip,
+    WRONG_DIRECTION => wrong_direction,
+    WRONG_POLE_PAIRS => wrong_pole_pairs,
+    ROTOR_BLOCKED => rotor_blocked,
+    HOMING_FAILED => homing_failed,
+    LIFECYCLE_TIMEOUT => lifecycle_timeout,
+    POWER_STAGE_OVERTEMP => power_stage_overtemp,
+    STREAM_TIMEOUT => stream_timeout,
+}
+
+// `ALL` (and so `FaultName::ALL`) is in bit order: bit i is named by entry i.
+const _: () = {
+    let mut rest: &[(FaultSet, &str)] = &FaultSet::ALL;
+    let mut bit = 1u32;
+    while let [(fault, _), tail @ ..] = rest {
+        assert!(fault.0 == bit, "FaultSet::ALL must list the faults in bit order");
+        bit = bit.wrapping_shl(1);
+        rest = tail;
+    }
+};
+
 #[cfg(feature = "defmt")]
 impl defmt::Format for FaultSet {
     fn format(&self, f: defmt::Formatter) {
@@ -195,11 +233,17 @@ impl defmt::Format for FaultSet {
             defmt::write!(f, "none");
             return;
         }
-        for (k, name) in self.names().enumerate() {
-            if k > 0 {
-                defmt::write!(f, "|");
+        let mut first = true;
+        let mut bit = 1u32;
+        for name in FaultName::ALL.iter() {
+            if self.0 & bit != 0 {
+                if !first {
+                    defmt::write!(f, "|");
+                }
+                first = false;
+                defmt::write!(f, "{}", name);
             }
-            defmt::write!(f, "{=str}", name);
+            bit = bit.wrapping_shl(1);
         }
     }
 }

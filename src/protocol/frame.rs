@@ -26,7 +26,7 @@ const CRC_BYTES: usize = 4;
 pub fn encode<'a, T: Serialize>(msg: &T, buf: &'a mut [u8]) -> Option<&'a [u8]> {
     let mut raw = [0u8; FRAME_MAX];
     let body = postcard::to_slice_crc32(msg, &mut raw, CRC.digest()).ok()?;
-    if cobs::max_encoding_length(body.len()) + 1 > FRAME_MAX {
+    if cobs::max_encoding_length(body.len()) >= FRAME_MAX {
         return None;
     }
     let n = cobs::try_encode(body, buf).ok()?;
@@ -40,12 +40,12 @@ pub fn decode<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
     if frame.len() >= FRAME_MAX {
         return Err(FrameError::TooLong);
     }
-    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+    let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
     let bytes = frame.get(..n).ok_or(FrameError::Cobs)?;
     if bytes.len() < CRC_BYTES {
         return Err(FrameError::Truncated);
     }
-    let (body, crc_bytes) = bytes.split_at(bytes.len() - CRC_BYTES);
+    let (body, crc_bytes) = bytes.split_at(bytes.len().saturating_sub(CRC_BYTES));
     let mut crc_le = [0u8; CRC_BYTES];
     crc_le.copy_from_slice(crc_bytes);
     if CRC.checksum(body) != u32::from_le_bytes(crc_le) {
@@ -56,6 +56,40 @@ pub fn decode<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
         return Err(FrameError::Trailing);
     }
     Ok(msg)
+}
+
+/// COBS-decodes `buf` in place; the decoded length, or `None` if it is not
+/// valid COBS (a zero inside, a code running past the end). Written out
+/// with checked accesses (the `cobs` crate's decoder indexes, which the
+/// panic-never proof cannot see through); the same result otherwise.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
+    let n = buf.len();
+    let (mut src, mut dst) = (0usize, 0usize);
+    while src < n {
+        let code = usize::from(*buf.get(src)?);
+        if code == 0 {
+            return None;
+        }
+        src = src.saturating_add(1);
+        let end = src.saturating_add(code).saturating_sub(1);
+        if end > n {
+            return None;
+        }
+        while src < end {
+            let b = *buf.get(src)?;
+            if b == 0 {
+                return None;
+            }
+            *buf.get_mut(dst)? = b;
+            src = src.saturating_add(1);
+            dst = dst.saturating_add(1);
+        }
+        if code != 0xFF && src < n {
+            *buf.get_mut(dst)? = 0;
+            dst = dst.saturating_add(1);
+        }
+    }
+    Some(dst)
 }
 
 /// Collects bytes from a transport into frames. Feed it what arrives; it
@@ -108,7 +142,7 @@ impl FrameReader {
         match self.buf.get_mut(self.len) {
             Some(slot) if !self.overflowed => {
                 *slot = byte;
-                self.len += 1;
+                self.len = self.len.saturating_add(1);
             }
             _ => self.overflowed = true,
         }

@@ -13,10 +13,13 @@ use serde::{Deserialize, Serialize};
 use crate::controller::{CommandError, CommandOutcome};
 use crate::telemetry::Mode;
 
-/// Longest dotted parameter path (`control.commutation.settle_timeout_s` is 36).
-pub const PATH_MAX: usize = 48;
-/// Longest free text in a reply (an error's reason, a version string).
-pub const TEXT_MAX: usize = 48;
+/// Longest dotted parameter path
+/// (`control.drive_train.friction_feedforward_speed_rad_s` is 52; checked
+/// at compile time in `params.rs`).
+pub const PATH_MAX: usize = 64;
+/// Longest free text in a reply (an error's reason, a version string): the
+/// longest `ParamError` reason is 82.
+pub const TEXT_MAX: usize = 96;
 /// Signals one capture records at most.
 pub const CAPTURE_SIGNALS_MAX: usize = 4;
 /// Samples per `CaptureData` reply (per signal row-major chunk), chosen so a
@@ -39,6 +42,7 @@ pub struct RequestFrame {
 /// Drive → host: a reply to one request, or a frame the drive sends by
 /// itself (telemetry at the configured rate).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+#[allow(clippy::large_enum_variant)]
 pub enum DriveFrame {
     Reply { seq: u16, reply: Reply },
     Telemetry(TelemetryFrame),

@@ -3,18 +3,27 @@
 //!
 //! - `messages`: what may be asked and answered ([`RequestFrame`],
 //!   [`DriveFrame`]);
-//! - `frame`: postcard + CRC-32 + COBS framing, and the byte-stream reader.
+//! - `frame`: postcard + CRC-32 + COBS framing, and the byte-stream reader;
+//! - `params`: parameters by dotted path (`control.speed_pi.kp`);
+//! - `drive`: what the server needs of a drive ([`DriveAccess`]) and of a
+//!   store ([`ParamStore`]);
+//! - `server`: request in, reply out ([`Server`]).
 //!
 //! Versioning: [`SCHEMA_HASH`] is the postcard-schema hash of the message
 //! types and of `ControlParams` (whose leaves are the parameter paths and the
 //! flash record). `Info` carries it; a host refuses a drive whose hash
 //! differs from its own, and a flash record carries [`PARAMS_SCHEMA_HASH`].
 
+pub mod drive;
 pub mod frame;
 pub mod messages;
+pub mod params;
+pub mod server;
 
 pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
+pub use drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 pub use messages::*;
+pub use server::{Identity, Server};
 /// The fixed-capacity types in the messages, at the version they use.
 pub use heapless;
 

@@ -36,7 +36,7 @@ fn send(b: &mut board::active::Board, cmd: Command) {
 
 /// The drive's newest telemetry (published by the interrupt every 1 ms).
 fn telemetry(b: &mut board::active::Board) -> Option<Telemetry> {
-    b.snapshot().drive.map(|(t, _)| t)
+    b.snapshot().drive().map(|(t, _)| t)
 }
 
 fn mode(b: &mut board::active::Board) -> Mode {

@@ -2,16 +2,14 @@
 //! the interrupt for things (through `board::link`, never a critical
 //! section).
 
-use embassy_stm32::gpio::{Flex, Input, Level, Output};
+use embassy_stm32::gpio::{AnyPin, Pin};
+use embassy_stm32::pac::gpio::vals::Idr;
 use embassy_stm32::peripherals::{ADC1, ADC2, COMP1, COMP2, COMP4, DAC3, OPAMP1, OPAMP2, OPAMP3, TIM1, TIM4};
-use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
-use embassy_stm32::timer::qei::Qei;
-use embassy_stm32::timer::simple_pwm::PwmPin;
-use embassy_stm32::timer::{Ch1, Ch2, Ch3};
 use embassy_stm32::Peri;
 
 use super::super::link::{IsrPhase, LinkError, Reply, Request, Snapshot, ThreadLink};
 use super::super::{BoardStatus, Calibration, ServoBoard};
+use super::setup::{self, PinId};
 use super::{brake, cal};
 
 /// How many PWM periods a request may take before `call` gives up. The
@@ -27,19 +25,15 @@ pub struct Board {
     pub(super) _opamps: (Peri<'static, OPAMP1>, Peri<'static, OPAMP2>, Peri<'static, OPAMP3>),
     pub(super) _comps: (Peri<'static, COMP1>, Peri<'static, COMP2>, Peri<'static, COMP4>),
     pub(super) _dac3: Peri<'static, DAC3>,
-    pub(super) _pwm_high: (PwmPin<'static, TIM1, Ch1>, PwmPin<'static, TIM1, Ch2>, PwmPin<'static, TIM1, Ch3>),
-    pub(super) _pwm_low: (
-        ComplementaryPwmPin<'static, TIM1, Ch1>,
-        ComplementaryPwmPin<'static, TIM1, Ch2>,
-        ComplementaryPwmPin<'static, TIM1, Ch3>,
-    ),
-    pub(super) _analog: [Flex<'static>; 11],
-    pub(super) _encoder: Qei<'static, TIM4>,
-    pub(super) led: Output<'static>,
+    /// PWM outputs, analog inputs, encoder inputs (`setup::configure_pins`
+    /// programmed them); held so embassy never hands them to anyone else.
+    pub(super) _pins: [Peri<'static, AnyPin>; 19],
+    pub(super) _tim4: Peri<'static, TIM4>,
+    pub(super) led: Peri<'static, AnyPin>,
     /// Driven by the interrupt (BSRR) and the HardFault handler; held here
     /// so embassy never hands the pin to anyone else.
     pub(super) _brake: Peri<'static, brake::Pin>,
-    pub(super) button: Input<'static>,
+    pub(super) button: Peri<'static, AnyPin>,
     pub(super) link: ThreadLink,
     pub(super) cpu_hz: u32,
     pub(super) pwm_timer_hz: u32,
@@ -111,10 +105,11 @@ impl ServoBoard for Board {
     }
 
     fn set_led(&mut self, on: bool) {
-        self.led.set_level(if on { Level::High } else { Level::Low });
+        let n = usize::from(self.led.pin());
+        setup::gpio_port(self.led.id()).bsrr().write(|w| if on { w.set_bs(n, true) } else { w.set_br(n, true) });
     }
 
     fn button_pressed(&self) -> bool {
-        self.button.is_low()
+        setup::gpio_port(self.button.id()).idr().read().idr(usize::from(self.button.pin())) == Idr::LOW
     }
 }

@@ -140,7 +140,10 @@ impl IsrState {
         // other two (Kirchhoff: the three currents sum to zero).
         let [r0, r1, r2] = self.duty_recent;
         let [p0, p1, p2] = self.duty_older;
-        let [d0, d1, d2] = [r0.max(p0), r1.max(p1), r2.max(p2)];
+        // `math::max`, a compare: `f32::max` is a call to libm's `fmaxf`
+        // in an image built for size.
+        use servo_core::math::max;
+        let [d0, d1, d2] = [max(r0, p0), max(r1, p1), max(r2, p2)];
         let [a, b, c] = i;
         if d0 >= d1 && d0 >= d2 && d0 > RECONSTRUCT_ABOVE_DUTY {
             i = [-(b + c), b, c];
@@ -213,7 +216,7 @@ impl IsrState {
                 hw_overcurrent_armed: self.hw_ocp_armed,
                 hw_overcurrent_tripped: self.hw_trip,
             },
-            drive: None,
+            ..Snapshot::INITIAL
         }
     }
 }
@@ -304,7 +307,9 @@ fn ADC1_2() {
                     sample.phase_current_a[0] -= a;
                     sample.phase_current_a[1] -= b;
                     sample.phase_current_a[2] -= cc;
-                    c.step(&sample)
+                    // Out of line: compiled with the core's speed settings,
+                    // not this image's size settings (see the method).
+                    c.step_out_of_line(&sample)
                 }
                 None => PwmCommand::OFF,
             }

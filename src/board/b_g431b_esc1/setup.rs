@@ -4,7 +4,8 @@
 //! interrupt priorities. Nothing here runs again after `Board::new` returns;
 //! the interrupt's path is in `isr.rs`.
 
-use embassy_stm32::gpio::{Flex, Input, Level, Output, OutputType, Pull, Speed};
+use embassy_stm32::gpio;
+use embassy_stm32::pac::gpio::vals::{Moder, Ospeedr, Ot, Pupdr};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::pac;
@@ -12,12 +13,10 @@ use embassy_stm32::pac::adc::vals::{Adcaldif, Exten, SampleTime};
 use embassy_stm32::pac::adccommon::vals::Ckmode;
 use embassy_stm32::pac::comp::vals::{Blanking, Hysteresis, Inm, Polarity};
 use embassy_stm32::pac::opamp::vals::{PgaGain, VmSel, VpSel};
-use embassy_stm32::pac::timer::vals::{Bkinp, Bkp, Cms, Dir, FilterValue, Mms2, Ocm, Ossi, Ossr};
-use embassy_stm32::peripherals::{ADC1, ADC2, DAC3, TIM1};
+use embassy_stm32::pac::timer::vals::{Bkinp, Bkp, CcmrInputCcs, Cms, Dir, FilterValue, Mms2, Ocm, Ossi, Ossr, Sms};
+use embassy_stm32::peripherals::{ADC1, ADC2, DAC3, TIM1, TIM4};
 use embassy_stm32::rcc;
-use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
-use embassy_stm32::timer::qei::{self, Qei, QeiMode};
-use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig};
+use embassy_stm32::timer::{Ch1, Ch2, Ch3, TimerComplementaryPin, TimerPin};
 use embassy_stm32::{Peri, Peripherals};
 
 use super::super::link;
@@ -61,19 +60,40 @@ impl Board {
         // duty cycle frozen on the motor.
         pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
 
-        // --- PWM outputs: pulled down so the gate driver inputs sit low
-        // whenever the timer does not drive them.
-        let out = PwmPinConfig { output_type: OutputType::PushPull, speed: Speed::VeryHigh, pull: Pull::Down };
-        let pwm_high = (
-            PwmPin::new_with_config(p.PA8, out),
-            PwmPin::new_with_config(p.PA9, out),
-            PwmPin::new_with_config(p.PA10, out),
-        );
-        let pwm_low = (
-            ComplementaryPwmPin::new_with_config(p.PC13, out),
-            ComplementaryPwmPin::new_with_config(p.PA12, out),
-            ComplementaryPwmPin::new_with_config(p.PB15, out),
-        );
+        // --- Pins, from one table (one loop of register writes instead of a
+        // driver object per pin): PWM outputs pulled down so the gate driver
+        // inputs sit low whenever the timer does not drive them; shunt
+        // inputs, gain pins, amplifier outputs, VBUS and NTC analog; the
+        // encoder inputs pulled up; LED (low) and button (pulled up). The AF
+        // numbers come from embassy's pin traits, so a pin that cannot carry
+        // its signal fails the build.
+        let pwm = |id: u8, af: u8| PinSetup::alternate(id, af, Pupdr::PULL_DOWN, Ospeedr::VERY_HIGH_SPEED);
+        let analog = PinSetup::analog;
+        let encoder = |id: u8, af: u8| PinSetup::alternate(id, af, Pupdr::PULL_UP, Ospeedr::LOW_SPEED);
+        let pins = [
+            pwm(p.PA8.id(), TimerPin::<TIM1, Ch1>::af_num(&*p.PA8)),
+            pwm(p.PA9.id(), TimerPin::<TIM1, Ch2>::af_num(&*p.PA9)),
+            pwm(p.PA10.id(), TimerPin::<TIM1, Ch3>::af_num(&*p.PA10)),
+            pwm(p.PC13.id(), TimerComplementaryPin::<TIM1, Ch1>::af_num(&*p.PC13)),
+            pwm(p.PA12.id(), TimerComplementaryPin::<TIM1, Ch2>::af_num(&*p.PA12)),
+            pwm(p.PB15.id(), TimerComplementaryPin::<TIM1, Ch3>::af_num(&*p.PB15)),
+            analog(p.PA0.id()),
+            analog(p.PA1.id()),
+            analog(p.PA2.id()),
+            analog(p.PA3.id()),
+            analog(p.PA5.id()),
+            analog(p.PA6.id()),
+            analog(p.PA7.id()),
+            analog(p.PB0.id()),
+            analog(p.PB1.id()),
+            analog(p.PB2.id()),
+            analog(p.PB14.id()),
+            encoder(p.PB6.id(), TimerPin::<TIM4, Ch1>::af_num(&*p.PB6)),
+            encoder(p.PB7.id(), TimerPin::<TIM4, Ch2>::af_num(&*p.PB7)),
+            PinSetup { id: p.PC6.id(), moder: Moder::OUTPUT, af: 0, pupdr: Pupdr::FLOATING, ospeedr: Ospeedr::LOW_SPEED },
+            PinSetup { id: p.PC10.id(), moder: Moder::INPUT, af: 0, pupdr: Pupdr::PULL_UP, ospeedr: Ospeedr::LOW_SPEED },
+        ];
+        configure_pins(&pins);
 
         let arr = pwm_auto_reload(tim_hz, pwm_frequency_hz)?;
         let dtg = dead_time_dtg(DEAD_TIME_NS, tim_hz).ok_or(BoardError::DeadTime)?;
@@ -81,24 +101,6 @@ impl Board {
         // CPU cycles per PWM period need no 64-bit division (that alone
         // would link 0.9 KB of runtime).
         let period_cycles = 2 * u32::from(arr) * (hclk_hz / tim_hz).max(1);
-
-        // --- Analog pins: shunt inputs, gain pins, amplifier outputs, VBUS, NTC.
-        let mut analog = [
-            Flex::new(p.PA0),
-            Flex::new(p.PA1),
-            Flex::new(p.PA2),
-            Flex::new(p.PA3),
-            Flex::new(p.PA5),
-            Flex::new(p.PA6),
-            Flex::new(p.PA7),
-            Flex::new(p.PB0),
-            Flex::new(p.PB1),
-            Flex::new(p.PB2),
-            Flex::new(p.PB14),
-        ];
-        for pin in analog.iter_mut() {
-            pin.set_as_analog();
-        }
 
         setup_opamps();
         let hw_ocp_armed = if HW_OVERCURRENT_BREAK { setup_overcurrent_comparators() } else { false };
@@ -111,23 +113,7 @@ impl Board {
         pac::ADC1.cr().modify(|w| w.set_jadstart(true));
         pac::ADC2.cr().modify(|w| w.set_jadstart(true));
 
-        // --- Encoder: TIM4 x4 quadrature on PB6/PB7, free-running 16 bits.
-        let qei_config = qei::Config {
-            ch1_pull: Pull::Up,
-            ch2_pull: Pull::Up,
-            mode: QeiMode::Mode3,
-            auto_reload: u16::MAX,
-        };
-        let encoder = Qei::new(p.TIM4, p.PB6, p.PB7, qei_config);
-        // 8-sample digital filter at 170 MHz (47 ns): rejects ringing on a
-        // cable, passes the 500 kHz edge rate of 10 000 counts/rev at 3000 rpm.
-        pac::TIM4.ccmr_input(0).modify(|w| {
-            w.set_icf(0, FilterValue::FCK_INT_N8);
-            w.set_icf(1, FilterValue::FCK_INT_N8);
-        });
-
-        let led = Output::new(p.PC6, Level::Low, Speed::Low);
-        let button = Input::new(p.PC10, Pull::Up);
+        setup_encoder_timer();
 
         // The interrupt's state and its ends of the link, moved into it
         // before it is unmasked.
@@ -146,13 +132,31 @@ impl Board {
             _opamps: (p.OPAMP1, p.OPAMP2, p.OPAMP3),
             _comps: (p.COMP1, p.COMP2, p.COMP4),
             _dac3: p.DAC3,
-            _pwm_high: pwm_high,
-            _pwm_low: pwm_low,
-            _analog: analog,
-            _encoder: encoder,
-            led,
+            _pins: [
+                p.PA8.into(),
+                p.PA9.into(),
+                p.PA10.into(),
+                p.PC13.into(),
+                p.PA12.into(),
+                p.PB15.into(),
+                p.PA0.into(),
+                p.PA1.into(),
+                p.PA2.into(),
+                p.PA3.into(),
+                p.PA5.into(),
+                p.PA6.into(),
+                p.PA7.into(),
+                p.PB0.into(),
+                p.PB1.into(),
+                p.PB2.into(),
+                p.PB14.into(),
+                p.PB6.into(),
+                p.PB7.into(),
+            ],
+            _tim4: p.TIM4,
+            led: p.PC6.into(),
             _brake: brake_pin,
-            button,
+            button: p.PC10.into(),
             link: thread_link,
             cpu_hz: hclk_hz,
             pwm_timer_hz: tim_hz,
@@ -180,8 +184,10 @@ fn pwm_auto_reload(tim_hz: u32, pwm_hz: f32) -> Result<u16, BoardError> {
 
 /// TIM1 BDTR.DTG for at least `ns` of dead time at `tdts_hz` (CKD = 1).
 fn dead_time_dtg(ns: u32, tdts_hz: u32) -> Option<u8> {
-    // Round up: never shorter than asked.
-    let ticks = (ns as u64 * tdts_hz as u64).div_ceil(1_000_000_000);
+    // Round up: never shorter than asked. In u32 (kHz × ns stays below 2³²
+    // for any dead time the DTG field can hold): a u64 division would link
+    // ≈ 0.9 KB of runtime in an image built for size.
+    let ticks = ns.saturating_mul(tdts_hz.div_ceil(1000)).div_ceil(1_000_000);
     match ticks {
         0..=127 => Some(ticks as u8),
         128..=254 => Some(0b1000_0000 | (ticks.div_ceil(2) - 64) as u8),
@@ -189,6 +195,85 @@ fn dead_time_dtg(ns: u32, tdts_hz: u32) -> Option<u8> {
         505..=1008 => Some(0b1110_0000 | (ticks.div_ceil(16) - 32) as u8),
         _ => None,
     }
+}
+
+/// A GPIO's port and number as one byte, `port · 16 + pin` (embassy's
+/// `AnyPin` numbering).
+pub(super) trait PinId {
+    fn id(&self) -> u8;
+}
+
+impl<P: gpio::Pin> PinId for P {
+    fn id(&self) -> u8 {
+        self.port() * 16 + self.pin()
+    }
+}
+
+/// The register block of the GPIO port of pin `id` (ports are 1 KiB apart).
+pub(super) fn gpio_port(id: u8) -> pac::gpio::Gpio {
+    // SAFETY: GPIOA..GPIOG are 0x400 apart on the STM32G4 (RM0440 memory
+    // map); the ids come from embassy's pin types.
+    unsafe { pac::gpio::Gpio::from_ptr((pac::GPIOA.as_ptr() as usize + 0x400 * usize::from(id / 16)) as *mut ()) }
+}
+
+/// One pin's mode, alternate function, pull and speed (push-pull always).
+#[derive(Clone, Copy)]
+struct PinSetup {
+    id: u8,
+    moder: Moder,
+    af: u8,
+    pupdr: Pupdr,
+    ospeedr: Ospeedr,
+}
+
+impl PinSetup {
+    fn alternate(id: u8, af: u8, pupdr: Pupdr, ospeedr: Ospeedr) -> Self {
+        Self { id, moder: Moder::ALTERNATE, af, pupdr, ospeedr }
+    }
+
+    fn analog(id: u8) -> Self {
+        Self { id, moder: Moder::ANALOG, af: 0, pupdr: Pupdr::FLOATING, ospeedr: Ospeedr::LOW_SPEED }
+    }
+}
+
+/// Programs the pins, mode last (the function, pull and speed are in
+/// place when the pin switches over; an output starts low).
+#[inline(never)]
+fn configure_pins(pins: &[PinSetup]) {
+    for c in pins {
+        let port = gpio_port(c.id);
+        let n = usize::from(c.id % 16);
+        port.bsrr().write(|w| w.set_br(n, true));
+        port.afr(n / 8).modify(|w| w.set_afr(n % 8, c.af));
+        port.otyper().modify(|w| w.set_ot(n, Ot::PUSH_PULL));
+        port.ospeedr().modify(|w| w.set_ospeedr(n, c.ospeedr));
+        port.pupdr().modify(|w| w.set_pupdr(n, c.pupdr));
+        port.moder().modify(|w| w.set_moder(n, c.moder));
+    }
+}
+
+/// TIM4: x4 quadrature (encoder mode 3) on CH1/CH2, free-running 16 bits,
+/// 8-sample digital filter at 170 MHz (47 ns): rejects ringing on a cable,
+/// passes the 500 kHz edge rate of 10 000 counts/rev at 3000 rpm.
+fn setup_encoder_timer() {
+    rcc::enable_and_reset::<TIM4>();
+    let t = pac::TIM4;
+    t.ccmr_input(0).modify(|w| {
+        // CCxS = 01: ICx on TIx.
+        w.set_ccs(0, CcmrInputCcs::TI4);
+        w.set_ccs(1, CcmrInputCcs::TI4);
+        w.set_icf(0, FilterValue::FCK_INT_N8);
+        w.set_icf(1, FilterValue::FCK_INT_N8);
+    });
+    t.ccer().modify(|w| {
+        w.set_cce(0, true);
+        w.set_cce(1, true);
+        w.set_ccp(0, false);
+        w.set_ccp(1, false);
+    });
+    t.smcr().modify(|w| w.set_sms(Sms::ENCODER_MODE_3));
+    t.arr().write(|w| w.set_arr(u16::MAX.into()));
+    t.cr1().modify(|w| w.set_cen(true));
 }
 
 /// OPAMP1/2/3 as non-inverting PGA ×16 with the gain network's ground on
@@ -439,12 +524,16 @@ fn wait_until(mut done: impl FnMut() -> bool) -> bool {
 
 /// Acknowledges both ADCs' injected end-of-conversion and end-of-sequence
 /// flags (write 1 to clear): at set-up, and every period in the interrupt.
+/// Two plain writes: a loop over the two ADCs becomes an iterator call per
+/// ADC in an image built for size.
 #[inline(always)]
 pub(super) fn clear_injected_flags() {
-    for adc in [pac::ADC1, pac::ADC2] {
-        adc.isr().write(|w| {
-            w.set_jeos(true);
-            w.set_jeoc(true);
-        });
-    }
+    let flags = {
+        let mut w = pac::adc::regs::Isr(0);
+        w.set_jeos(true);
+        w.set_jeoc(true);
+        w
+    };
+    pac::ADC1.isr().write_value(flags);
+    pac::ADC2.isr().write_value(flags);
 }

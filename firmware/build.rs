@@ -1,9 +1,9 @@
 //! Link setup for the firmware image, and nothing else.
 //!
-//! The library (`servo_core`) is also built for the host simulator and for
-//! the QEMU test runner, which have their own linker scripts and no defmt.
-//! So this script acts only when the `board` feature is on, and its link
-//! arguments go to binaries only (`rustc-link-arg-bins`).
+//! The build script of the firmware package (firmware/Cargo.toml); the
+//! control core's library (`servo_core`, the root package) has none, since
+//! the host simulator and the QEMU test runner link it with their own
+//! scripts. Its link arguments go to binaries only (`rustc-link-arg-bins`).
 
 use std::env;
 use std::fs;
@@ -11,12 +11,9 @@ use std::path::PathBuf;
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=../memory.x");
 
-    if env::var_os("CARGO_FEATURE_BOARD").is_none() {
-        return;
-    }
-    // A `board` build for a hosted target (e.g. `cargo check --target
+    // A build for a hosted target (e.g. `cargo check --target
     // x86_64-…`) has no use for the Cortex-M linker scripts.
     let target = env::var("TARGET").unwrap_or_default();
     if !target.starts_with("thumb") {
@@ -25,7 +22,7 @@ fn main() {
 
     // Put memory.x where the linker finds it (cortex-m-rt's link.x includes it).
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let memory = fs::read("memory.x").expect("memory.x at the package root");
+    let memory = fs::read("../memory.x").expect("memory.x at the repository root");
     fs::write(out.join("memory.x"), memory).expect("write memory.x to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
 

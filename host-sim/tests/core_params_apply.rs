@@ -1,0 +1,169 @@
+//! `Controller::apply_params` and `Command::Stop` on the full plant: a
+//! speed-loop gain changed mid-move is bumpless (the q current moves by
+//! less than 10 % of the rated current), structure changes need the bridge
+//! off, a commanded stop decelerates to rest and holds.
+
+use host_sim::config::RigConfig;
+use host_sim::plant::Plant;
+use host_sim::sim::{commissioned_control, ClosedLoop};
+use servo_core::controller::ApplyError;
+use servo_core::params::ValidatedParams;
+use servo_core::{Command, Controller, Mode, Readiness};
+use std::f64::consts::PI;
+
+const X0_M: f64 = 0.25;
+
+fn holding() -> ClosedLoop {
+    let rig = RigConfig::nominal().unwrap();
+    let mut plant = Plant::new(rig.plant.clone(), 5);
+    plant.set_initial_state((X0_M - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), PI / 2.0);
+    let controller = Controller::try_new(commissioned_control(rig.control, &plant)).unwrap();
+    let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
+    cl.controller.command(Command::SetHome { position_m: X0_M as f32 }).unwrap();
+    cl.controller.command(Command::Enable).unwrap();
+    for _ in 0..4000 {
+        cl.step();
+    }
+    assert_eq!(cl.controller.mode(), Mode::Running);
+    cl
+}
+
+/// q current (plant truth) every PWM period of a 100 mm move up against
+/// the rated load, with `change` applied `at` periods into the move.
+fn move_with(change: Option<(u64, fn(&mut servo_core::ControlParams))>, periods: u64) -> Vec<f64> {
+    let mut cl = holding();
+    cl.controller.command(Command::MoveTo { position_m: (X0_M + 0.1) as f32 }).unwrap();
+    let mut iq = vec![];
+    for k in 0..periods {
+        if let Some((at, f)) = change {
+            if k == at {
+                let mut p = *cl.controller.params();
+                f(&mut p);
+                cl.controller.apply_params(&ValidatedParams::new(p).unwrap()).unwrap();
+            }
+        }
+        let t = cl.step();
+        assert!(t.faults.is_empty(), "{:?}", t.faults);
+        iq.push(cl.plant.state().i_q_a);
+    }
+    iq
+}
+
+#[test]
+fn a_speed_gain_changed_mid_move_does_not_bump_the_current() {
+    let rated_a = f64::from(servo_core::ControlParams::DEFAULT.thermal.continuous_current_a);
+    // The brake opens, then the move: accelerating around 0.05 s into it,
+    // cruising around 0.25 s (20 kHz periods).
+    let window = 200; // 10 ms after the change
+    let cases: [(&str, fn(&mut servo_core::ControlParams)); 4] = [
+        ("kp x2", |p| p.speed_pi.kp *= 2.0),
+        ("kp /2", |p| p.speed_pi.kp *= 0.5),
+        ("ki x2", |p| p.speed_pi.ki *= 2.0),
+        ("ki /2", |p| p.speed_pi.ki *= 0.5),
+    ];
+    let mut worst: f64 = 0.0;
+    for at in [2_000u64, 5_000] {
+        let base = move_with(None, at + window);
+        for (name, f) in cases {
+            let with = move_with(Some((at, f)), at + window);
+            assert_eq!(&with[..at as usize], &base[..at as usize], "deterministic up to the change");
+            let peak = (at as usize..(at + window) as usize).map(|k| (with[k] - base[k]).abs()).fold(0.0, f64::max);
+            // The period-to-period change, against the base run's own.
+            let step = |v: &[f64]| (at as usize..(at + 20) as usize).map(|k| (v[k] - v[k - 1]).abs()).fold(0.0, f64::max);
+            println!(
+                "{name} at {:.0} ms: peak i_q change {:.3} A ({:.1} % of {rated_a} A rated) over 10 ms; largest period step {:.3} A (base {:.3} A)",
+                at as f64 / 20.0,
+                peak,
+                100.0 * peak / rated_a,
+                step(&with),
+                step(&base)
+            );
+            worst = worst.max(peak);
+            assert!(peak < 0.1 * rated_a, "{name}: {peak} A");
+        }
+    }
+    println!("worst: {worst:.3} A = {:.1} % of rated", 100.0 * worst / rated_a);
+}
+
+#[test]
+fn structure_changes_need_the_bridge_off_and_forget_commutation() {
+    let mut cl = holding();
+    let mut p = *cl.controller.params();
+    p.motor.pole_pairs = 5;
+    let v = ValidatedParams::new(p).unwrap();
+    let before = *cl.controller.params();
+    assert_eq!(cl.controller.apply_params(&v), Err(ApplyError::NeedsBridgeOff { field: "control.motor" }));
+    assert_eq!(*cl.controller.params(), before, "nothing applied");
+    // A live change with the bridge on is applied.
+    let mut live = before;
+    live.trajectory.max_velocity_m_s = 0.1;
+    cl.controller.apply_params(&ValidatedParams::new(live).unwrap()).unwrap();
+    assert_eq!(cl.controller.params().trajectory.max_velocity_m_s, 0.1);
+    // Bridge off: applied; the offset belongs to the old pole count.
+    let rig = RigConfig::nominal().unwrap();
+    let mut c = Controller::new(rig.control);
+    c.step(&servo_core::SensorSample::idle(48.0));
+    let mut q = *c.params();
+    q.startup.commutation_known = true;
+    c.apply_params(&ValidatedParams::new(q).unwrap()).unwrap();
+    assert!(c.readiness().contains(Readiness::COMMUTATED));
+    q.startup.commutation_known = false;
+    q.motor.pole_pairs = 5;
+    c.apply_params(&ValidatedParams::new(q).unwrap()).unwrap();
+    assert!(!c.readiness().contains(Readiness::COMMUTATED));
+    assert_eq!(c.params().motor.pole_pairs, 5);
+}
+
+#[test]
+fn a_commanded_stop_decelerates_to_rest_and_holds() {
+    let mut cl = holding();
+    cl.controller.command(Command::MoveTo { position_m: (X0_M + 0.2) as f32 }).unwrap();
+    for _ in 0..6_000 {
+        cl.step();
+    }
+    let v0 = cl.plant.state().v_rod_m_s;
+    assert!(v0 > 0.1, "cruising: {v0}");
+    let x0 = cl.plant.state().motor_side_position_m;
+    assert_eq!(cl.controller.command(Command::Stop), Ok(servo_core::CommandOutcome::Accepted));
+    let decel = f64::from(cl.controller.params().faults.stop_deceleration_m_s2);
+    let mut stopped_at = None;
+    for k in 0..10_000 {
+        let t = cl.step();
+        assert!(t.faults.is_empty(), "{:?}", t.faults);
+        assert_eq!(t.mode, Mode::Running);
+        if stopped_at.is_none() && !cl.controller.move_in_progress() {
+            stopped_at = Some(k);
+        }
+    }
+    let k = stopped_at.expect("at rest");
+    let x1 = cl.plant.state().motor_side_position_m;
+    println!(
+        "stop from {:.3} m/s: at rest after {:.1} ms, {:.2} mm on (v²/2a = {:.2} mm)",
+        v0,
+        k as f64 / 20.0,
+        (x1 - x0) * 1e3,
+        v0 * v0 / (2.0 * decel) * 1e3
+    );
+    assert!(cl.plant.state().v_rod_m_s.abs() < 1e-3);
+    assert!((x1 - x0) < 1.5 * v0 * v0 / (2.0 * decel) + 1e-3);
+    // Ready for the next move.
+    assert!(cl.controller.command(Command::MoveTo { position_m: X0_M as f32 }).is_ok());
+    // Stopping a stream.
+    let mut cl = holding();
+    for k in 0..4_000 {
+        // 0.1 m/s for 200 ms, a setpoint every millisecond.
+        let x = X0_M + 0.1 * (k as f64 * 50e-6);
+        if k % 20 == 0 {
+            cl.controller.command(Command::Stream { position_m: x as f32, velocity_m_s: 0.1, force_n: None }).unwrap();
+        }
+        assert!(cl.step().faults.is_empty());
+    }
+    assert!(cl.plant.state().v_rod_m_s > 0.05);
+    cl.controller.command(Command::Stop).unwrap();
+    for _ in 0..20_000 {
+        let t = cl.step();
+        assert!(t.faults.is_empty(), "{:?}", t.faults);
+    }
+    assert!(!cl.controller.move_in_progress());
+    assert!(cl.plant.state().v_rod_m_s.abs() < 1e-3);
+}

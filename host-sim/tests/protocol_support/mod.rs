@@ -1,0 +1,161 @@
+//! A mock drive and an in-memory store for the protocol tests.
+#![allow(dead_code)]
+
+use servo_core::controller::ApplyError;
+use servo_core::params::ValidatedParams;
+use servo_core::protocol::*;
+use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Readiness, Telemetry};
+
+/// Keeps what a controller would: mode, readiness, parameters; records
+/// every command and every applied set.
+#[derive(Debug, Clone)]
+pub struct MockDrive {
+    pub params: ControlParams,
+    pub mode: Mode,
+    pub readiness: Readiness,
+    pub time_s: f32,
+    pub position_reference_m: f32,
+    pub commands: Vec<Command>,
+    pub applied: usize,
+    /// The next command is refused with this.
+    pub refuse: Option<CommandError>,
+    pub captures: usize,
+    pub tests: usize,
+}
+
+impl MockDrive {
+    pub fn new() -> Self {
+        Self {
+            params: ControlParams::DEFAULT,
+            mode: Mode::Disabled,
+            readiness: Readiness(7),
+            time_s: 1.0,
+            position_reference_m: 0.25,
+            commands: vec![],
+            applied: 0,
+            refuse: None,
+            captures: 0,
+            tests: 0,
+        }
+    }
+
+    pub fn running() -> Self {
+        let mut d = Self::new();
+        d.mode = Mode::Running;
+        d
+    }
+}
+
+impl DriveAccess for MockDrive {
+    fn status(&self) -> DriveStatus {
+        let telemetry = Telemetry {
+            time_s: self.time_s,
+            mode: self.mode,
+            readiness: self.readiness,
+            position_reference_m: self.position_reference_m,
+            ..Telemetry::default()
+        };
+        DriveStatus { telemetry, test_running: false }
+    }
+
+    fn params(&self) -> ControlParams {
+        self.params
+    }
+
+    fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        if let Some(e) = self.refuse.take() {
+            return Err(e);
+        }
+        self.commands.push(cmd);
+        match cmd {
+            Command::Enable => self.mode = Mode::Running,
+            Command::Disable => self.mode = Mode::Disabled,
+            Command::Stream { position_m, .. } => self.position_reference_m = position_m,
+            _ => {}
+        }
+        Ok(CommandOutcome::Accepted)
+    }
+
+    fn apply_params(&mut self, p: &ValidatedParams) -> Result<(), ApplyError> {
+        if !matches!(self.mode, Mode::Disabled | Mode::Fault) {
+            if let Some(field) = self.params.bridge_off_change(p.get()) {
+                return Err(ApplyError::NeedsBridgeOff { field });
+            }
+        }
+        self.params = *p.get();
+        self.applied += 1;
+        Ok(())
+    }
+
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+        self.captures += 1;
+        match request {
+            CaptureRequest::Read { signal, start, count } => {
+                let values = heapless::Vec::from_iter((0..*count).map(f32::from));
+                Ok(CaptureReply::Data { signal: *signal, start: *start, values })
+            }
+            _ => Ok(CaptureReply::Ok),
+        }
+    }
+
+    fn test_signal(&mut self, _: &TestSignal) -> Result<(), Text> {
+        self.tests += 1;
+        Ok(())
+    }
+}
+
+/// A store in memory; `fail` makes every call fail.
+#[derive(Debug, Clone, Default)]
+pub struct MemStore {
+    pub record: Vec<u8>,
+    pub fail: bool,
+}
+
+impl ParamStore for MemStore {
+    fn save(&mut self, record: &[u8]) -> Result<(), Text> {
+        if self.fail {
+            return Err(server::text("flash write failed"));
+        }
+        self.record = record.to_vec();
+        Ok(())
+    }
+
+    fn load(&mut self, buf: &mut [u8]) -> Result<usize, Text> {
+        if self.fail {
+            return Err(server::text("flash read failed"));
+        }
+        let n = self.record.len();
+        buf.get_mut(..n).ok_or_else(|| server::text("record too long"))?.copy_from_slice(&self.record);
+        Ok(n)
+    }
+}
+
+pub fn server() -> Server {
+    let id = Identity { firmware_version: "0.1.0", git_hash: "test", board: "mock" };
+    Server::new(id, ValidatedParams::new(ControlParams::DEFAULT).unwrap())
+}
+
+/// The reply to `request` (seq 1), through encode → FrameReader → decode.
+pub fn ask(srv: &mut Server, drive: &mut MockDrive, store: &mut MemStore, request: Request) -> Option<Reply> {
+    let mut buf = [0u8; FRAME_MAX];
+    let bytes = encode(&RequestFrame { seq: 1, request }, &mut buf).expect("request fits").to_vec();
+    let mut reader = FrameReader::new();
+    let mut out = None;
+    for b in bytes {
+        if let Some(f) = srv.receive(&mut reader, b, drive, store) {
+            assert!(out.is_none(), "one reply per request");
+            out = Some(f);
+        }
+    }
+    out.map(|f| match f {
+        DriveFrame::Reply { seq, reply } => {
+            assert_eq!(seq, 1);
+            reply
+        }
+        DriveFrame::Telemetry(_) => panic!("telemetry as a reply"),
+    })
+}
+
+pub fn path(s: &str) -> Path {
+    Path::try_from(s).unwrap()
+}

@@ -1,0 +1,459 @@
+//! The drive's side of the protocol: one request in, at most one reply out.
+//!
+//! Every request is checked whole before anything is applied, and a refusal
+//! says what and why ([`Error`]); nothing is applied partially. Transports
+//! (USART, FDCAN, the simulator's TCP) feed bytes to [`Server::receive`] or
+//! whole frames to [`Server::handle_bytes`], send back what they return,
+//! and send [`Server::telemetry_frame`] at [`Server::telemetry_rate_hz`].
+
+// Replies are values on the stack, sized by the wire format; no boxing here.
+#![allow(clippy::result_large_err)]
+
+use core::fmt::Write;
+
+use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
+use super::frame::{decode, Feed, FrameReader};
+use super::messages::*;
+use super::params::{self as paths, PathError, PARAM_COUNT};
+use super::SCHEMA_HASH;
+use crate::controller::{ApplyError, Command, CommandError};
+use crate::params::{record, ControlParams, ValidatedParams};
+use crate::telemetry::{Mode, Telemetry};
+
+/// Who the drive is, for `Info`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Identity {
+    pub firmware_version: &'static str,
+    pub git_hash: &'static str,
+    pub board: &'static str,
+}
+
+/// Position periods of slack on a stream point's jump bound: the drive
+/// clock the server reads is cut at the position rate and may lag the ISR
+/// by one period.
+const STREAM_SLACK_PERIODS: f32 = 2.0;
+
+/// The previous accepted stream point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LastPoint {
+    time_s: f32,
+    position_m: f32,
+}
+
+/// The protocol server: telemetry configuration and the stream's last
+/// point are its only state.
+#[derive(Debug)]
+pub struct Server {
+    identity: Identity,
+    defaults: ValidatedParams,
+    telemetry_fields: u32,
+    telemetry_rate_hz: u16,
+    last_point: Option<LastPoint>,
+}
+
+/// `s` as reply text, cut at [`TEXT_MAX`] (on a character boundary).
+pub fn text(s: &str) -> Text {
+    let mut t = Text::new();
+    for c in s.chars() {
+        if t.push(c).is_err() {
+            break;
+        }
+    }
+    t
+}
+
+fn path_of(s: &str) -> Path {
+    let mut p = Path::new();
+    for c in s.chars() {
+        if p.push(c).is_err() {
+            break;
+        }
+    }
+    p
+}
+
+fn invalid(field: &str, reason: &str) -> Error {
+    Error::InvalidParam { field: path_of(field), reason: text(reason) }
+}
+
+fn stream_error(reason: &str) -> Error {
+    Error::Stream { reason: text(reason) }
+}
+
+/// Why the controller refused a stream point, for `Error::Stream`.
+fn stream_refusal(e: CommandError) -> &'static str {
+    match e {
+        CommandError::Faulted(_) | CommandError::CauseStillPresent(_) => "refused: faults latched (ClearFaults)",
+        CommandError::NotRunning => "refused: drive not running (Enable)",
+        CommandError::NotDisabled => "refused: drive not disabled",
+        CommandError::Busy => "refused: a move is in progress",
+        CommandError::NotFinite => "refused: value not finite",
+        CommandError::OutOfRange => "refused: value out of range",
+        CommandError::BusLow => "refused: bus voltage low",
+        CommandError::NotCalibrated => "refused: currents not calibrated",
+        CommandError::NotCommutated => "refused: not commutated (Align)",
+        CommandError::NotHomed => "refused: not homed (Home)",
+    }
+}
+
+fn bridge_off(status: &DriveStatus) -> bool {
+    matches!(status.telemetry.mode, Mode::Disabled | Mode::Fault)
+}
+
+fn reply(seq: u16, reply: Reply) -> DriveFrame {
+    DriveFrame::Reply { seq, reply }
+}
+
+impl Server {
+    /// A server for a drive whose image defaults are `defaults` (what
+    /// `Defaults` restores and a failed `Load` falls back to).
+    pub const fn new(identity: Identity, defaults: ValidatedParams) -> Self {
+        Self { identity, defaults, telemetry_fields: 0, telemetry_rate_hz: 0, last_point: None }
+    }
+
+    /// One byte from the transport: the reply when it completed a frame,
+    /// `Error::Frame` (seq 0) when it ended a bad one.
+    pub fn receive<D: DriveAccess, S: ParamStore>(&mut self, reader: &mut FrameReader, byte: u8, drive: &mut D, store: &mut S) -> Option<DriveFrame> {
+        match reader.push(byte) {
+            Feed::Pending => None,
+            Feed::Frame(bytes) => self.handle_bytes(bytes, drive, store),
+            Feed::Dropped(e) => Some(reply(0, Reply::Error(Error::Frame(e)))),
+        }
+    }
+
+    /// One frame as [`FrameReader`] hands it out (COBS bytes, no
+    /// delimiter; decoded in place): its reply, or `Error::Frame` with seq 0
+    /// when it does not decode.
+    pub fn handle_bytes<D: DriveAccess, S: ParamStore>(&mut self, frame: &mut [u8], drive: &mut D, store: &mut S) -> Option<DriveFrame> {
+        match decode::<RequestFrame>(frame) {
+            Ok(request) => self.handle(&request, drive, store),
+            Err(e) => Some(reply(0, Reply::Error(Error::Frame(e)))),
+        }
+    }
+
+    /// One decoded request: its reply, or `None` for an accepted
+    /// `Request::Stream` (answered only when refused).
+    pub fn handle<D: DriveAccess, S: ParamStore>(&mut self, frame: &RequestFrame, drive: &mut D, store: &mut S) -> Option<DriveFrame> {
+        let seq = frame.seq;
+        let out = match &frame.request {
+            Request::Stream(point) => match self.stream(point, drive) {
+                Ok(()) => return None,
+                Err(e) => Err(e),
+            },
+            Request::Info => Ok(self.info(drive)),
+            Request::Status => Ok(Self::status(drive)),
+            Request::ParamCount => Ok(Reply::ParamCount { count: u16::try_from(PARAM_COUNT).unwrap_or(u16::MAX) }),
+            Request::ParamName { index } => Self::param_name(*index),
+            Request::ParamGet { path } => paths::get(&drive.params(), path)
+                .map(|value| Reply::Param { path: path.clone(), value })
+                .map_err(|_| Error::UnknownPath { path: path.clone() }),
+            Request::ParamSet { path, value } => Self::param_set(path, *value, drive),
+            Request::Save => Self::save(drive, store),
+            Request::Load => self.load(drive, store),
+            Request::Defaults => self.defaults(drive),
+            Request::Command(c) => self.command(*c, drive),
+            Request::Telemetry { fields, rate_hz } => self.configure_telemetry(*fields, *rate_hz, drive),
+            Request::Capture(c) => Self::capture(c, drive),
+            Request::Test(t) => Self::test(t, drive),
+        };
+        Some(reply(seq, out.unwrap_or_else(Reply::Error)))
+    }
+
+    fn info<D: DriveAccess>(&self, drive: &D) -> Reply {
+        let t = drive.status().telemetry;
+        Reply::Info(Info {
+            firmware_version: text(self.identity.firmware_version),
+            git_hash: text(self.identity.git_hash),
+            schema_hash: SCHEMA_HASH,
+            board: text(self.identity.board),
+            mode: t.mode,
+            faults: t.faults.bits(),
+            pwm_frequency_hz: drive.params().rates.pwm_frequency_hz,
+        })
+    }
+
+    fn status<D: DriveAccess>(drive: &D) -> Reply {
+        let s = drive.status();
+        let t = s.telemetry;
+        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.0, time_s: t.time_s, test_running: s.test_running })
+    }
+
+    fn param_name(index: u16) -> Result<Reply, Error> {
+        match paths::name(usize::from(index)) {
+            Some((path, kind)) => Ok(Reply::ParamName { index, path, kind }),
+            None => {
+                let mut path = Path::new();
+                // Fits: "control[65535]" is 14 characters.
+                let _ = write!(path, "control[{index}]");
+                Err(Error::UnknownPath { path })
+            }
+        }
+    }
+
+    /// Staged on a copy, validated whole, then applied: nothing partial.
+    fn param_set<D: DriveAccess>(path: &Path, value: Value, drive: &mut D) -> Result<Reply, Error> {
+        let present = drive.params();
+        let mut staged = present;
+        if let Value::F32(v) = value {
+            if !v.is_finite() && paths::kind(path).is_ok() {
+                return Err(invalid(path, "must be finite"));
+            }
+        }
+        paths::set(&mut staged, path, value).map_err(|e| match e {
+            PathError::Unknown => Error::UnknownPath { path: path.clone() },
+            PathError::WrongType(expected) => Error::WrongType { path: path.clone(), expected },
+            PathError::NoSuchVariant => invalid(path, "no such variant"),
+        })?;
+        let validated = ValidatedParams::new(staged).map_err(|e| invalid(e.field, e.reason))?;
+        if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
+            return Err(Error::NeedsBridgeOff { path: path.clone() });
+        }
+        drive.apply_params(&validated).map_err(|e| match e {
+            ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { path: path.clone() },
+        })?;
+        let value = paths::get(&staged, path).map_err(|_| Error::UnknownPath { path: path.clone() })?;
+        Ok(Reply::Param { path: path.clone(), value })
+    }
+
+    fn save<D: DriveAccess, S: ParamStore>(drive: &D, store: &mut S) -> Result<Reply, Error> {
+        if !bridge_off(&drive.status()) {
+            return Err(Error::BridgeOn);
+        }
+        let mut buf = [0u8; record::RECORD_MAX];
+        let bytes = record::encode(&drive.params(), &mut buf).map_err(|e| Error::Storage { reason: text(e.reason()) })?;
+        store.save(bytes).map_err(|reason| Error::Storage { reason })?;
+        Ok(Reply::Ok)
+    }
+
+    /// The stored record if it is whole and of this schema, else the image
+    /// defaults; the reply says which and why.
+    fn load<D: DriveAccess, S: ParamStore>(&mut self, drive: &mut D, store: &mut S) -> Result<Reply, Error> {
+        if !bridge_off(&drive.status()) {
+            return Err(Error::BridgeOn);
+        }
+        let mut buf = [0u8; record::RECORD_MAX];
+        let found = match store.load(&mut buf) {
+            Ok(n) => record::decode(buf.get(..n).unwrap_or(&[])).map_err(|e| text(e.reason())),
+            Err(reason) => Err(reason),
+        };
+        match found {
+            Ok(p) => {
+                self.apply_whole(p, drive)?;
+                Ok(Reply::Loaded { from_flash: true, note: text("record applied") })
+            }
+            Err(why) => {
+                self.apply_whole(self.defaults, drive)?;
+                let mut note = why;
+                for c in "; image defaults applied".chars() {
+                    if note.push(c).is_err() {
+                        break;
+                    }
+                }
+                Ok(Reply::Loaded { from_flash: false, note })
+            }
+        }
+    }
+
+    fn defaults<D: DriveAccess>(&mut self, drive: &mut D) -> Result<Reply, Error> {
+        if !bridge_off(&drive.status()) {
+            return Err(Error::BridgeOn);
+        }
+        self.apply_whole(self.defaults, drive)?;
+        Ok(Reply::Ok)
+    }
+
+    /// A whole set (`Load`, `Defaults`). On an incremental encoder the
+    /// electrical offset is a measurement of this power cycle, not a
+    /// setting: the present one is kept, so a commutated drive stays so.
+    fn apply_whole<D: DriveAccess>(&mut self, set: ValidatedParams, drive: &mut D) -> Result<(), Error> {
+        let mut p: ControlParams = *set.get();
+        if !p.startup.commutation_known {
+            p.encoder.electrical_offset_rad = drive.params().encoder.electrical_offset_rad;
+        }
+        let set = ValidatedParams::new(p).map_err(|e| invalid(e.field, e.reason))?;
+        self.last_point = None;
+        drive.apply_params(&set).map_err(|e| match e {
+            ApplyError::NeedsBridgeOff { field } => Error::NeedsBridgeOff { path: path_of(field) },
+        })
+    }
+
+    fn command<D: DriveAccess>(&mut self, c: DriveCommand, drive: &mut D) -> Result<Reply, Error> {
+        let cmd = match c {
+            DriveCommand::Enable => Command::Enable,
+            DriveCommand::Disable => Command::Disable,
+            DriveCommand::Calibrate => Command::Calibrate,
+            DriveCommand::Align => Command::Align,
+            DriveCommand::Home => Command::Home,
+            DriveCommand::StartUp => Command::StartUp,
+            DriveCommand::MoveTo { position_m } => Command::MoveTo { position_m },
+            DriveCommand::Jog { distance_m } => Command::Jog { distance_m },
+            DriveCommand::SetHome { position_m } => Command::SetHome { position_m },
+            DriveCommand::Stop => Command::Stop,
+            DriveCommand::ClearFaults => Command::ClearFaults,
+            DriveCommand::SetCompensation { enabled } => Command::SetCompensation { enabled },
+            DriveCommand::SetPositionShift { shift_m } => Command::SetPositionShift { shift_m },
+        };
+        if !matches!(c, DriveCommand::SetCompensation { .. } | DriveCommand::SetPositionShift { .. }) {
+            // Anything else ends (or never was part of) a stream.
+            self.last_point = None;
+        }
+        drive.command(cmd).map(|o| Reply::Command(o.into())).map_err(Error::Command)
+    }
+
+    /// Checked against the limits and the previous point, then handed to
+    /// `Command::Stream`.
+    fn stream<D: DriveAccess>(&mut self, sp: &StreamPoint, drive: &mut D) -> Result<(), Error> {
+        let p = drive.params();
+        let t = drive.status().telemetry;
+        if !sp.position_m.is_finite() {
+            return Err(stream_error("position_m not finite"));
+        }
+        if !sp.velocity_m_s.is_finite() {
+            return Err(stream_error("velocity_m_s not finite"));
+        }
+        if sp.force_n.is_some_and(|f| !f.is_finite()) {
+            return Err(stream_error("force_n not finite"));
+        }
+        if sp.position_m < p.limits.stroke_min_m {
+            return Err(stream_error("position_m below control.limits.stroke_min_m"));
+        }
+        if sp.position_m > p.limits.stroke_max_m {
+            return Err(stream_error("position_m beyond control.limits.stroke_max_m"));
+        }
+        let v_max = p.trajectory.max_velocity_m_s;
+        if sp.velocity_m_s.abs() > v_max {
+            return Err(stream_error("velocity_m_s beyond control.trajectory.max_velocity_m_s"));
+        }
+        let period_max = p.stream.period_max_s;
+        let (from_m, interval_s) = match self.last_point {
+            Some(last) => {
+                let gap = t.time_s - last.time_s;
+                if gap > p.stream.timeout_s {
+                    self.last_point = None;
+                    return Err(stream_error("gap beyond control.stream.timeout_s: the stream has ended"));
+                }
+                (last.position_m, crate::math::clamp(gap, 0.0, period_max))
+            }
+            // The first point is reached from the reference over the
+            // longest interval.
+            None => (t.position_reference_m, period_max),
+        };
+        let reach = v_max * (interval_s + STREAM_SLACK_PERIODS * p.position_period_s());
+        if !((sp.position_m - from_m).abs() <= reach) {
+            return Err(stream_error("jump beyond control.trajectory.max_velocity_m_s since the last point"));
+        }
+        let cmd = Command::Stream { position_m: sp.position_m, velocity_m_s: sp.velocity_m_s, force_n: sp.force_n };
+        match drive.command(cmd) {
+            Ok(_) => {
+                self.last_point = Some(LastPoint { time_s: t.time_s, position_m: sp.position_m });
+                Ok(())
+            }
+            Err(e) => {
+                self.last_point = None;
+                Err(stream_error(stream_refusal(e)))
+            }
+        }
+    }
+
+    fn configure_telemetry<D: DriveAccess>(&mut self, fields: u32, rate_hz: u16, drive: &D) -> Result<Reply, Error> {
+        if fields >> TelemetryField::COUNT != 0 {
+            return Err(invalid("telemetry.fields", "bits beyond the last TelemetryField"));
+        }
+        let position_rate_hz = 1.0 / drive.params().position_period_s();
+        if f32::from(rate_hz) > position_rate_hz {
+            return Err(invalid("telemetry.rate_hz", "above the position-loop rate (the record's rate)"));
+        }
+        self.telemetry_fields = fields;
+        self.telemetry_rate_hz = rate_hz;
+        Ok(Reply::Ok)
+    }
+
+    fn capture<D: DriveAccess>(c: &CaptureRequest, drive: &mut D) -> Result<Reply, Error> {
+        let refuse = |reason: &str| Err(Error::Capture { reason: text(reason) });
+        match c {
+            CaptureRequest::Configure(cfg) => {
+                if cfg.signals.is_empty() {
+                    return refuse("no signals");
+                }
+                if cfg.decimation == 0 {
+                    return refuse("decimation must be >= 1");
+                }
+                if cfg.samples == 0 {
+                    return refuse("samples must be >= 1");
+                }
+                if cfg.pre_trigger > cfg.samples {
+                    return refuse("pre_trigger beyond samples");
+                }
+            }
+            CaptureRequest::Read { count, .. } if usize::from(*count) > CAPTURE_CHUNK_MAX => {
+                return refuse("count beyond CAPTURE_CHUNK_MAX");
+            }
+            _ => {}
+        }
+        match drive.capture(c) {
+            Ok(CaptureReply::Ok) => Ok(Reply::Ok),
+            Ok(CaptureReply::Status(s)) => Ok(Reply::CaptureStatus(s)),
+            Ok(CaptureReply::Data { signal, start, values }) => Ok(Reply::CaptureData { signal, start, values }),
+            Err(reason) => Err(Error::Capture { reason }),
+        }
+    }
+
+    fn test<D: DriveAccess>(t: &TestSignal, drive: &mut D) -> Result<Reply, Error> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        let ok = match *t {
+            TestSignal::CurrentStep { amplitude_a, duration_s, .. } => amplitude_a.is_finite() && positive(duration_s),
+            TestSignal::SpeedStep { amplitude_rad_s, duration_s } => amplitude_rad_s.is_finite() && positive(duration_s),
+            TestSignal::PositionStep { distance_m, duration_s } => distance_m.is_finite() && positive(duration_s),
+            TestSignal::Chirp { amplitude, start_hz, end_hz, duration_s, .. } => {
+                amplitude.is_finite() && positive(start_hz) && positive(end_hz) && positive(duration_s)
+            }
+        };
+        if !ok {
+            return Err(Error::Test { reason: text("amplitude not finite, or a duration or frequency not > 0") });
+        }
+        drive.test_signal(t).map(|()| Reply::Ok).map_err(|reason| Error::Test { reason })
+    }
+
+    /// Telemetry fields (bit i = [`TelemetryField`] i); 0 when off.
+    pub fn telemetry_fields(&self) -> u32 {
+        self.telemetry_fields
+    }
+
+    /// How often the transport sends [`Server::telemetry_frame`]; 0: not.
+    pub fn telemetry_rate_hz(&self) -> u16 {
+        self.telemetry_rate_hz
+    }
+
+    /// The configured fields of `t`, in bit order. `Faults` carries the
+    /// fault bits in the `f32`'s bit pattern (`f32::from_bits`: bit 28
+    /// does not fit a float's mantissa); `Mode` and `Readiness` are small
+    /// integers as floats; `TerminalPosition` is NaN without a scale.
+    pub fn telemetry_frame(&self, t: &Telemetry) -> TelemetryFrame {
+        let all = [
+            t.position_reference_m,
+            t.position_command_m,
+            t.position_shift_m,
+            t.motor_position_m,
+            t.speed_reference_rad_s,
+            t.speed_rad_s,
+            t.current_d_a,
+            t.current_q_a,
+            t.current_q_reference_a,
+            t.voltage_d_v,
+            t.voltage_q_v,
+            t.bus_voltage_v,
+            t.terminal_position_m.unwrap_or(f32::NAN),
+            t.load_force_estimate_n,
+            t.mode as u8 as f32,
+            f32::from_bits(t.faults.bits()),
+            f32::from(t.readiness.0),
+        ];
+        let mut values = heapless::Vec::new();
+        for (bit, v) in all.iter().enumerate() {
+            if self.telemetry_fields & (1 << bit) != 0 && values.push(*v).is_err() {
+                break;
+            }
+        }
+        TelemetryFrame { time_s: t.time_s, fields: self.telemetry_fields, values }
+    }
+}
