@@ -115,16 +115,20 @@ fn bad_input_gets_error_replies() {
     assert!(matches!(c.ask(Request::Status).unwrap(), Reply::Status(_)));
     // Unknown path, NaN, a value of the wrong type.
     let e = tool::param_get(&mut c, "speed_pi.nope").unwrap_err().to_string();
-    assert!(e.contains("no parameter `speed_pi.nope`"), "{e}");
+    assert!(e.contains("no parameter `control.speed_pi.nope`"), "{e}");
     let e = tool::param_set(&mut c, "speed_pi.kp", "NaN").unwrap_err().to_string();
-    assert!(e.contains("not finite"), "{e}");
-    let r = c.request(Request::ParamSet { path: "speed_pi.kp".try_into().unwrap(), value: Value::Bool(true) }).unwrap();
+    assert!(e.contains("finite"), "{e}");
+    let r = c.request(Request::ParamSet { path: "control.speed_pi.kp".try_into().unwrap(), value: Value::Bool(true) }).unwrap();
     assert!(matches!(r, Reply::Error(Error::WrongType { .. })), "{r:?}");
     // A NaN stream point is refused with its seq.
     enabled(&mut c);
     let seq = c.send(Request::Stream(StreamPoint { position_m: f32::NAN, velocity_m_s: 0.0, force_n: None })).unwrap();
     c.poll(Duration::from_millis(200)).unwrap();
-    assert!(c.unsolicited.iter().any(|u| u.seq == seq && matches!(u.error, Reply::Error(Error::Command(_)))), "{:?}", c.unsolicited);
+    assert!(
+        c.unsolicited.iter().any(|u| u.seq == seq && matches!(&u.error, Reply::Error(Error::Stream { reason }) if reason.contains("not finite"))),
+        "{:?}",
+        c.unsolicited
+    );
     // A raw client without the schema check still gets answers.
     let mut r = d.raw();
     drop(c);
@@ -173,7 +177,7 @@ fn a_csv_trajectory_streams_and_is_tracked() {
 }
 
 #[test]
-fn a_stream_that_jumps_beyond_the_speed_limit_is_bounded_and_reported() {
+fn a_stream_that_jumps_beyond_the_speed_limit_is_refused_at_its_row() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("jump.csv");
     // 20 mm in one millisecond: 20 m/s asked, far beyond the limit.
@@ -192,14 +196,15 @@ fn a_stream_that_jumps_beyond_the_speed_limit_is_bounded_and_reported() {
     let w = c.telemetry.iter().map(|t| t.values[0].abs()).fold(0.0f32, f32::max);
     println!("peak speed {w} rad/s (limit {speed_max})");
     assert!(w <= speed_max * 1.05, "{w} > {speed_max}");
-    // Bounded, not obeyed: the drive reports it (a refusal, or a following
-    // fault ending the stream).
     let st = match c.ask(Request::Status).unwrap() {
         Reply::Status(s) => s,
         r => panic!("{r:?}"),
     };
     println!("faults: {:?}", servo_core::FaultSet(st.faults).names().collect::<Vec<_>>());
-    assert!(!r.refusals.is_empty() || st.faults != 0, "a 20 m/s jump passed silently: {st:?}");
+    // The core server refuses the first point of the jump, by its row.
+    let (row, why) = r.refusals.first().expect("the jump was refused");
+    assert_eq!(*row, 201, "{why}");
+    assert!(why.contains("jump beyond control.trajectory.max_velocity_m_s"), "{why}");
     // Sending stops soon after the drive stops taking points.
     if let Some(row) = r.aborted_at_row {
         assert!(r.sent < rows.len() && row < rows.len(), "{row}");

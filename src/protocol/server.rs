@@ -359,7 +359,10 @@ impl Server {
         if fields >> TelemetryField::COUNT != 0 {
             return Err(invalid("telemetry.fields", "bits beyond the last TelemetryField"));
         }
-        let position_rate_hz = 1.0 / drive.params().position_period_s();
+        // PWM rate over the divider: exact for whole rates (1 / 0.001f32 is
+        // 999.99994, which refused a 1 kHz request).
+        let r = drive.params().rates;
+        let position_rate_hz = r.pwm_frequency_hz / r.position_loop_divider as f32;
         if f32::from(rate_hz) > position_rate_hz {
             return Err(invalid("telemetry.rate_hz", "above the position-loop rate (the record's rate)"));
         }

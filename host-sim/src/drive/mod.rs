@@ -2,32 +2,34 @@
 //! drive protocol (`servo_core::protocol`) over a local TCP socket, so the
 //! host tool talks to it exactly as to a board.
 //!
-//! - `SimDrive`: one closed loop (`sim::ClosedLoop`) plus what the board's
-//!   main task adds around the core: the request dispatch, telemetry at the
-//!   requested rate, the capture buffer and the parameter store (a file).
+//! - `SimDrive`: one closed loop (`sim::ClosedLoop`), the core's protocol
+//!   `Server` (the same request handling the firmware runs), and what the
+//!   board's main task adds around them: `DriveAccess` on the controller
+//!   between two steps, the parameter store (`store`: a file for the flash
+//!   record), telemetry at the configured rate, the capture buffer.
 //! - `serve`: accepts one client at a time (sequential connections), reads
 //!   frames with `FrameReader`, answers, and paces the simulation (`Pace`).
 //!
-//! Interim seams until the core branches are merged (docs/host-tool.md):
-//! parameter paths (`params`, replaced by the core `Server`'s miniconf
-//! paths), `Controller::apply_params` (sets take effect on the next start
-//! of the drive until then), the capture buffer (`capture`, replaced by
-//! `Controller::capture_*`) and test signals (refused until
-//! `Controller::start_test`).
+//! Interim until the core's capture and test signals (branch core-scope)
+//! are merged: the capture buffer is the drive's own (`capture`), sampled
+//! every PWM period, and test signals are refused with that reason.
 
 pub mod capture;
-pub mod params;
 pub mod store;
 
 use crate::config::RigConfig;
 use crate::plant::Plant;
 use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, Context, Result};
+use servo_core::controller::ApplyError;
+use servo_core::params::{record, ValidatedParams};
+use servo_core::protocol::drive::{CaptureReply, DriveAccess, DriveStatus};
+use servo_core::protocol::server::{text, Identity, Server};
 use servo_core::protocol::{
-    self, heapless, CommandReport, DriveCommand, DriveFrame, Error, Feed, FrameReader, Info, Reply, Request,
-    RequestFrame, Status, TelemetryFrame, FRAME_MAX, SCHEMA_HASH,
+    self, heapless, CaptureRequest, DriveFrame, Error, Feed, FrameReader, Reply, Request, RequestFrame, TelemetryFrame, TestSignal,
+    Text, FRAME_MAX,
 };
-use servo_core::{Command, ControlParams, Controller};
+use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
 use std::io::{ErrorKind, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
@@ -84,53 +86,90 @@ impl DriveOptions {
     }
 }
 
-/// One simulated drive: the closed loop and what the board adds around it.
+/// `DriveAccess` on the simulated controller, between two steps.
+struct Access<'a> {
+    cl: &'a mut ClosedLoop,
+    capture: &'a mut capture::Capture,
+}
+
+impl DriveAccess for Access<'_> {
+    fn status(&self) -> DriveStatus {
+        DriveStatus { telemetry: self.cl.controller.telemetry(), test_running: false }
+    }
+    fn params(&self) -> ControlParams {
+        *self.cl.controller.params()
+    }
+    fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        self.cl.controller.command(cmd)
+    }
+    fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
+        self.cl.controller.apply_params(params)
+    }
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+        let pwm = self.cl.controller.params().rates.pwm_frequency_hz;
+        let r = match request {
+            CaptureRequest::Configure(cfg) => self.capture.configure(cfg.clone(), pwm).map(|_| CaptureReply::Ok),
+            CaptureRequest::Trigger => self.capture.trigger().map(|_| CaptureReply::Ok),
+            CaptureRequest::Status => Ok(CaptureReply::Status(self.capture.status())),
+            CaptureRequest::Read { signal, start, count } => self.capture.read(*signal, *start, *count).map(|v| CaptureReply::Data {
+                signal: *signal,
+                start: *start,
+                values: heapless::Vec::from_slice(&v).unwrap_or_default(),
+            }),
+        };
+        r.map_err(|e| text(&e))
+    }
+    fn test_signal(&mut self, _signal: &TestSignal) -> Result<(), Text> {
+        Err(text("test signals need the core's start_test (core-scope, not merged yet)"))
+    }
+}
+
+/// One simulated drive: the closed loop, the protocol server and what the
+/// board adds around them.
 pub struct SimDrive {
     pub cl: ClosedLoop,
     opts: DriveOptions,
-    /// The parameter set the host sees (`ParamGet`/`ParamSet`/`Save`).
-    params: ControlParams,
+    server: Server,
     store: store::FileStore,
     capture: capture::Capture,
-    telemetry_fields: u32,
-    telemetry_every: u64,
     telemetry_next: u64,
     divider: u64,
     /// A stream is live: fast pacing advances by stream frames only.
     stream_live: bool,
-    /// Sets applied to the controller still waiting for `apply_params`.
-    pub pending_apply: bool,
+    /// What happened to the saved record at start (for the log).
+    pub boot_note: String,
 }
 
 impl SimDrive {
-    /// Starts like a board: the saved record (if any) replaces the image's
-    /// defaults (the rig file's `[control]`).
+    /// Starts like a board: the saved record, if there is a usable one,
+    /// replaces the image's defaults (the rig file's `[control]`).
     pub fn new(opts: DriveOptions) -> Result<Self> {
         let store = store::FileStore { path: opts.store.clone() };
-        let mut params = opts.rig.control;
-        let mut loaded = false;
-        if opts.store.is_some() {
-            if let Some(p) = store.load().map_err(|e| anyhow!("--store: {e}"))? {
-                params = p;
-                loaded = true;
-            }
-        }
         let rig = &opts.rig;
         let mut plant = Plant::new(rig.plant.clone(), opts.seed);
         let x0 = opts.initial_position_m;
         plant.set_initial_state((x0 - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), 90f64.to_radians());
         // Powered up as a board is: brake closed, bridge off.
         plant.engage_brake();
-        // The commissioning bits (commutation, homing) are facts about the
-        // rig, not parameters a record carries over.
-        let mut run = params;
+        // The image's defaults; commissioned: offset and reference known.
+        let defaults = if opts.commissioned { commissioned_control(rig.control, &plant) } else { rig.control };
+        let defaults = ValidatedParams::new(defaults).map_err(|e| anyhow!("control parameters: {e}"))?;
+        let (mut params, boot_note) = match store.read() {
+            Ok(Some(bytes)) => match record::decode(&bytes) {
+                Ok(p) => (*p.get(), "saved record loaded".to_string()),
+                Err(e) => (*defaults.get(), format!("saved record not used ({}); image defaults", e.reason())),
+            },
+            Ok(None) => (*defaults.get(), "no saved record; image defaults".to_string()),
+            Err(e) => (*defaults.get(), format!("store: {e}; image defaults")),
+        };
         if opts.commissioned {
-            run = commissioned_control(params, &plant);
-            if !loaded {
-                params = run;
-            }
+            // Facts of this rig and power cycle, not settings a record carries.
+            let d = defaults.get();
+            params.startup.commutation_known = d.startup.commutation_known;
+            params.startup.homed = d.startup.homed;
+            params.encoder.electrical_offset_rad = d.encoder.electrical_offset_rad;
         }
-        let controller = Controller::try_new(run).map_err(|e| anyhow!("control parameters: {e}"))?;
+        let controller = servo_core::Controller::try_new(params).map_err(|e| anyhow!("control parameters: {e}"))?;
         let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
         cl.override_pending(servo_core::PwmCommand::OFF);
         if opts.commissioned {
@@ -138,24 +177,30 @@ impl SimDrive {
                 .command(Command::SetHome { position_m: x0 as f32 })
                 .map_err(|e| anyhow!("SetHome: {e:?}"))?;
         }
-        let divider = u64::from(run.rates.position_loop_divider);
+        let identity = Identity {
+            firmware_version: env!("CARGO_PKG_VERSION"),
+            git_hash: match option_env!("HOST_SIM_GIT_HASH") {
+                Some(h) => h,
+                None => "host-sim",
+            },
+            board: "host-sim simulated drive",
+        };
+        let divider = u64::from(params.rates.position_loop_divider);
         Ok(Self {
             cl,
             opts,
-            params,
+            server: Server::new(identity, defaults),
             store,
             capture: capture::Capture::default(),
-            telemetry_fields: 0,
-            telemetry_every: 0,
             telemetry_next: 0,
             divider,
             stream_live: false,
-            pending_apply: false,
+            boot_note,
         })
     }
 
     pub fn params(&self) -> &ControlParams {
-        &self.params
+        self.cl.controller.params()
     }
 
     pub fn stream_live(&self) -> bool {
@@ -170,10 +215,12 @@ impl SimDrive {
     pub fn step(&mut self) -> Option<TelemetryFrame> {
         self.cl.step();
         self.capture.sample(&self.cl);
+        let rate = self.server.telemetry_rate_hz();
         let k = self.cl.periods();
-        if self.telemetry_every > 0 && k >= self.telemetry_next {
-            self.telemetry_next = k + self.telemetry_every;
-            return Some(self.telemetry_frame());
+        if rate > 0 && k >= self.telemetry_next && k.is_multiple_of(self.divider) {
+            let every = (self.pwm_hz() / f64::from(rate)).round().max(1.0) as u64;
+            self.telemetry_next = k + every;
+            return Some(self.server.telemetry_frame(&self.cl.controller.telemetry()));
         }
         None
     }
@@ -188,193 +235,27 @@ impl SimDrive {
         }
     }
 
-    fn telemetry_frame(&self) -> TelemetryFrame {
-        let t = self.cl.controller.telemetry();
-        let all = [
-            t.position_reference_m,
-            t.position_command_m,
-            t.position_shift_m,
-            t.motor_position_m,
-            t.speed_reference_rad_s,
-            t.speed_rad_s,
-            t.current_d_a,
-            t.current_q_a,
-            t.current_q_reference_a,
-            t.voltage_d_v,
-            t.voltage_q_v,
-            t.bus_voltage_v,
-            t.terminal_position_m.unwrap_or(f32::NAN),
-            t.load_force_estimate_n,
-            t.mode as u8 as f32,
-            t.faults.bits() as f32,
-            f32::from(t.readiness.0),
-        ];
-        let mut values = heapless::Vec::new();
-        for (i, v) in all.iter().enumerate() {
-            if self.telemetry_fields & (1 << i) != 0 {
-                let _ = values.push(*v);
-            }
+    /// Handles one request through the core's server; `None`: no reply (an
+    /// accepted stream point).
+    pub fn handle(&mut self, frame: &RequestFrame) -> Option<DriveFrame> {
+        let was_on = self.server.telemetry_rate_hz() > 0;
+        let mut access = Access { cl: &mut self.cl, capture: &mut self.capture };
+        let out = self.server.handle(frame, &mut access, &mut self.store);
+        match &frame.request {
+            Request::Stream(_) if out.is_none() => self.stream_live = true,
+            Request::Stream(_) => {}
+            Request::Status | Request::Info | Request::Capture(_) | Request::Telemetry { .. } => {}
+            _ => self.stream_live = false,
         }
-        TelemetryFrame { time_s: self.cl.time_s() as f32, fields: self.telemetry_fields, values }
+        if !was_on && self.server.telemetry_rate_hz() > 0 {
+            self.telemetry_next = self.cl.periods();
+        }
+        out
     }
 
-    fn status(&self) -> Status {
-        let c = &self.cl.controller;
-        Status {
-            mode: c.mode(),
-            faults: c.faults().bits(),
-            readiness: c.readiness().0,
-            time_s: self.cl.time_s() as f32,
-            test_running: false,
-        }
-    }
-
-    /// Handles one request; `None`: no reply (an accepted stream point).
-    pub fn handle(&mut self, req: Request) -> Option<Reply> {
-        let text = |s: &str| -> protocol::Text {
-            let mut t = heapless::String::new();
-            for ch in s.chars() {
-                if t.push(ch).is_err() {
-                    break;
-                }
-            }
-            t
-        };
-        let path_of = |s: &str| -> protocol::Path {
-            let mut t = heapless::String::new();
-            for ch in s.chars() {
-                if t.push(ch).is_err() {
-                    break;
-                }
-            }
-            t
-        };
-        let bridge_on = || !matches!(self.cl.controller.mode(), servo_core::Mode::Disabled | servo_core::Mode::Fault);
-        let reply = match req {
-            Request::Info => Reply::Info(Info {
-                firmware_version: text(env!("CARGO_PKG_VERSION")),
-                git_hash: text(option_env!("HOST_SIM_GIT_HASH").unwrap_or("host-sim")),
-                schema_hash: SCHEMA_HASH,
-                board: text("host-sim simulated drive"),
-                mode: self.cl.controller.mode(),
-                faults: self.cl.controller.faults().bits(),
-                pwm_frequency_hz: self.pwm_hz() as f32,
-            }),
-            Request::Status => Reply::Status(self.status()),
-            Request::ParamCount => Reply::ParamCount { count: params::leaves(&self.params).len() as u16 },
-            Request::ParamName { index } => match params::leaves(&self.params).get(usize::from(index)) {
-                Some((p, kind)) => {
-                    // `control.` + path, unless that overflows PATH_MAX.
-                    let full = format!("control.{p}");
-                    let path = if full.len() <= protocol::PATH_MAX { full } else { p.clone() };
-                    Reply::ParamName { index, path: path_of(&path), kind: *kind }
-                }
-                None => Reply::Error(Error::UnknownPath { path: path_of(&format!("#{index}")) }),
-            },
-            Request::ParamGet { path } => match params::get(&self.params, &path) {
-                Ok(value) => Reply::Param { path, value },
-                Err(_) => Reply::Error(Error::UnknownPath { path }),
-            },
-            Request::ParamSet { path, value } => match params::set(&self.params, &path, value) {
-                Ok(p) => {
-                    self.params = p;
-                    self.pending_apply = true;
-                    let value = params::get(&self.params, &path).unwrap_or(value);
-                    Reply::Param { path, value }
-                }
-                Err(params::PathError::Unknown) => Reply::Error(Error::UnknownPath { path }),
-                Err(params::PathError::WrongType(expected)) => Reply::Error(Error::WrongType { path, expected }),
-                Err(params::PathError::Invalid(reason)) => Reply::Error(Error::InvalidParam { field: path, reason: text(&reason) }),
-            },
-            Request::Save if bridge_on() => Reply::Error(Error::BridgeOn),
-            Request::Save => match self.store.save(&self.params) {
-                Ok(()) => Reply::Ok,
-                Err(e) => Reply::Error(Error::Storage { reason: text(&e) }),
-            },
-            Request::Load if bridge_on() => Reply::Error(Error::BridgeOn),
-            Request::Load => match self.store.load() {
-                Ok(Some(p)) => {
-                    self.params = p;
-                    self.pending_apply = true;
-                    Reply::Loaded { from_flash: true, note: text("saved record applied") }
-                }
-                Ok(None) => Reply::Error(Error::Storage { reason: text("no saved record") }),
-                Err(e) => Reply::Error(Error::Storage { reason: text(&e) }),
-            },
-            Request::Defaults => {
-                self.params = self.opts.rig.control;
-                self.pending_apply = true;
-                Reply::Ok
-            }
-            Request::Command(cmd) => {
-                self.stream_live = false;
-                let core = match cmd {
-                    DriveCommand::Enable => Command::Enable,
-                    DriveCommand::Disable => Command::Disable,
-                    DriveCommand::Calibrate => Command::Calibrate,
-                    DriveCommand::Align => Command::Align,
-                    DriveCommand::Home => Command::Home,
-                    DriveCommand::StartUp => Command::StartUp,
-                    DriveCommand::MoveTo { position_m } => Command::MoveTo { position_m },
-                    DriveCommand::Jog { distance_m } => Command::Jog { distance_m },
-                    DriveCommand::SetHome { position_m } => Command::SetHome { position_m },
-                    // Interim: the core ends a stream and holds; a stop of a
-                    // planned move waits for the core server's `Stop`.
-                    DriveCommand::Stop => Command::StreamEnd,
-                    DriveCommand::ClearFaults => Command::ClearFaults,
-                    DriveCommand::SetCompensation { enabled } => Command::SetCompensation { enabled },
-                    DriveCommand::SetPositionShift { shift_m } => Command::SetPositionShift { shift_m },
-                };
-                match self.cl.controller.command(core) {
-                    Ok(o) => Reply::Command(CommandReport::from(o)),
-                    Err(e) => Reply::Error(Error::Command(e)),
-                }
-            }
-            Request::Stream(p) => {
-                let cmd = Command::Stream { position_m: p.position_m, velocity_m_s: p.velocity_m_s, force_n: p.force_n };
-                match self.cl.controller.command(cmd) {
-                    Ok(servo_core::CommandOutcome::Accepted) => {
-                        self.stream_live = true;
-                        return None;
-                    }
-                    Ok(servo_core::CommandOutcome::ClampedToStroke { position_m }) => {
-                        self.stream_live = true;
-                        Reply::Error(Error::Stream { reason: text(&format!("clamped to stroke at {position_m} m")) })
-                    }
-                    Err(e) => Reply::Error(Error::Command(e)),
-                }
-            }
-            Request::Telemetry { fields, rate_hz } => {
-                if rate_hz == 0 {
-                    self.telemetry_every = 0;
-                } else {
-                    let every = (self.pwm_hz() / f64::from(rate_hz)).round().max(1.0) as u64;
-                    self.telemetry_every = every;
-                    self.telemetry_next = self.cl.periods();
-                }
-                self.telemetry_fields = fields & ((1 << protocol::TelemetryField::COUNT) - 1);
-                Reply::Ok
-            }
-            Request::Capture(c) => {
-                let pwm = self.pwm_hz() as f32;
-                let r = match c {
-                    protocol::CaptureRequest::Configure(cfg) => self.capture.configure(cfg, pwm).map(|_| Reply::CaptureStatus(self.capture.status())),
-                    protocol::CaptureRequest::Trigger => self.capture.trigger().map(|_| Reply::Ok),
-                    protocol::CaptureRequest::Status => Ok(Reply::CaptureStatus(self.capture.status())),
-                    protocol::CaptureRequest::Read { signal, start, count } => {
-                        let count = count.min(protocol::CAPTURE_CHUNK_MAX as u8);
-                        self.capture.read(signal, start, count).map(|v| Reply::CaptureData {
-                            signal,
-                            start,
-                            values: heapless::Vec::from_slice(&v).unwrap_or_default(),
-                        })
-                    }
-                };
-                r.unwrap_or_else(|e| Reply::Error(Error::Capture { reason: text(&e) }))
-            }
-            Request::Test(_) => Reply::Error(Error::Test { reason: text("needs the core's start_test (core-scope)") }),
-        };
-        Some(reply)
+    /// A reply to a frame that did not decode.
+    pub fn frame_error(e: protocol::FrameError) -> DriveFrame {
+        DriveFrame::Reply { seq: 0, reply: Reply::Error(Error::Frame(e)) }
     }
 }
 
@@ -384,6 +265,7 @@ pub type StopFlag = Arc<AtomicBool>;
 /// Serves clients one after another until `stop` is set.
 pub fn serve(listener: TcpListener, opts: DriveOptions, stop: StopFlag) -> Result<()> {
     let mut drive = SimDrive::new(opts.clone())?;
+    eprintln!("drive: {}", drive.boot_note);
     listener.set_nonblocking(true)?;
     let started = Instant::now();
     let mut sim_offset_s = 0.0;
@@ -468,14 +350,16 @@ fn session(drive: &mut SimDrive, sock: TcpStream, stop: &StopFlag) -> Result<()>
                 Feed::Frame(f) => protocol::decode(f),
             };
             match req {
-                Err(e) => send(&mut wr, &DriveFrame::Reply { seq: 0, reply: Reply::Error(Error::Frame(e)) })?,
-                Ok(RequestFrame { seq, request }) => {
-                    let is_stream = matches!(request, Request::Stream(_));
-                    let reply = drive.handle(request);
-                    if is_stream && fast && drive.stream_live {
+                Err(e) => send(&mut wr, &SimDrive::frame_error(e))?,
+                Ok(frame) => {
+                    let is_stream = matches!(frame.request, Request::Stream(_));
+                    let live_before = drive.stream_live;
+                    let reply = drive.handle(&frame);
+                    if is_stream && fast && (drive.stream_live || live_before) {
                         // The frame was applied at a position-loop boundary
                         // (the drive always rests on one); advance exactly one
-                        // stream period of simulated time.
+                        // stream period of simulated time, refused or not, so
+                        // the drive's clock keeps the stream's timeline.
                         last_stream_frame = Instant::now();
                         for _ in 0..stream_periods {
                             tlm.extend(drive.step());
@@ -485,7 +369,7 @@ fn session(drive: &mut SimDrive, sock: TcpStream, stop: &StopFlag) -> Result<()>
                         }
                     }
                     if let Some(reply) = reply {
-                        send(&mut wr, &DriveFrame::Reply { seq, reply })?;
+                        send(&mut wr, &reply)?;
                     }
                 }
             }

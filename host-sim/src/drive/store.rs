@@ -1,10 +1,12 @@
 //! The simulated drive's parameter store: one file standing in for the
-//! board's flash record. The record is the postcard bytes of
-//! `ControlParams` after the 8-byte `PARAMS_SCHEMA_HASH`, so a record from
-//! another layout is refused as the board refuses it.
+//! board's flash. It holds the core's record (`servo_core::params::record`:
+//! magic, parameter-schema hash, postcard body, CRC-32) byte for byte, so a
+//! record from another layout or a corrupted one is refused as the board
+//! refuses it.
 
-use servo_core::protocol::PARAMS_SCHEMA_HASH;
-use servo_core::ControlParams;
+use servo_core::protocol::drive::ParamStore;
+use servo_core::protocol::server::text;
+use servo_core::protocol::Text;
 use std::path::PathBuf;
 
 #[derive(Clone, Debug)]
@@ -13,28 +15,35 @@ pub struct FileStore {
 }
 
 impl FileStore {
-    pub fn save(&self, p: &ControlParams) -> Result<(), String> {
-        let Some(path) = &self.path else { return Err("no --store file".into()) };
-        let mut bytes = PARAMS_SCHEMA_HASH.to_vec();
-        bytes.extend(postcard::to_allocvec(p).map_err(|e| e.to_string())?);
+    /// The stored bytes; `Ok(None)` when nothing is stored.
+    pub fn read(&self) -> Result<Option<Vec<u8>>, String> {
+        let Some(path) = &self.path else { return Ok(None) };
+        match std::fs::read(path) {
+            Ok(b) => Ok(Some(b)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(format!("{}: {e}", path.display())),
+        }
+    }
+}
+
+impl ParamStore for FileStore {
+    fn save(&mut self, record: &[u8]) -> Result<(), Text> {
+        let Some(path) = &self.path else { return Err(text("no --store file given to the simulated drive")) };
+        // Written whole or not at all: a temporary file renamed over the old.
         let tmp = path.with_extension("tmp");
-        std::fs::write(&tmp, &bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
-        std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+        std::fs::write(&tmp, record).map_err(|e| text(&format!("{}: {e}", tmp.display())))?;
+        std::fs::rename(&tmp, path).map_err(|e| text(&format!("{}: {e}", path.display())))
     }
 
-    /// `Ok(None)`: no record yet.
-    pub fn load(&self) -> Result<Option<ControlParams>, String> {
-        let Some(path) = &self.path else { return Err("no --store file".into()) };
-        let bytes = match std::fs::read(path) {
-            Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(format!("{}: {e}", path.display())),
-        };
-        let Some(body) = bytes.strip_prefix(&PARAMS_SCHEMA_HASH[..]) else {
-            return Err("record of another parameter layout".into());
-        };
-        let p: ControlParams = postcard::from_bytes(body).map_err(|e| format!("unreadable record: {e}"))?;
-        p.validate().map_err(|e| format!("saved set invalid: {e}"))?;
-        Ok(Some(p))
+    fn load(&mut self, buf: &mut [u8]) -> Result<usize, Text> {
+        match self.read() {
+            Ok(None) => Ok(0),
+            Ok(Some(b)) if b.len() > buf.len() => Err(text("stored record longer than the record buffer")),
+            Ok(Some(b)) => {
+                buf[..b.len()].copy_from_slice(&b);
+                Ok(b.len())
+            }
+            Err(e) => Err(text(&e)),
+        }
     }
 }

@@ -59,7 +59,8 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
         // `rows.len()` after the stream started.
         let n = tel.len().min(rows.len());
         let errs: Vec<f64> = tel[..n].iter().map(|t| f64::from(t.values[0]) - f64::from(t.values[1])).collect();
-        let faults = tel.iter().map(|t| t.values[2] as u32).fold(0, |a, b| a | b);
+        // The Faults field carries the bits in the f32's bit pattern.
+        let faults = tel.iter().map(|t| t.values[2].to_bits()).fold(0, |a, b| a | b);
         let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len().max(1) as f64).sqrt();
         let max = errs.iter().fold(0.0f64, |m, e| m.max(e.abs()));
         // The capture figure: 4 signals × the buffer at the PWM rate.

@@ -5,11 +5,12 @@
 pub mod analysis;
 pub mod bench;
 pub mod client;
+pub mod params;
 pub mod stream;
 pub mod test;
 
 use crate::config::RigConfig;
-use crate::drive::{self, params, DriveOptions, Pace};
+use crate::drive::{self, DriveOptions, Pace};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
 use client::{Client, Endpoint};
@@ -307,18 +308,10 @@ pub fn param_list(c: &mut Client) -> Result<Vec<(String, Value)>> {
     Ok(out)
 }
 
-/// A path as sent: with the `control.` prefix (the rig file's table, as the
-/// drive names its paths); without it only if it would not fit `PATH_MAX`
-/// (older drives, whose limit was 48).
 fn path_arg(p: &str) -> Result<servo_core::protocol::Path> {
-    let bare = params::normalise(p);
-    let full = format!("control.{bare}");
+    let full = params::full_path(p);
     let mut s = servo_core::protocol::heapless::String::new();
-    if s.push_str(&full).is_ok() {
-        return Ok(s);
-    }
-    s.clear();
-    s.push_str(bare).map_err(|_| anyhow!("path `{p}` longer than {} characters", servo_core::protocol::PATH_MAX))?;
+    s.push_str(&full).map_err(|_| anyhow!("path `{p}` longer than {} characters", servo_core::protocol::PATH_MAX))?;
     Ok(s)
 }
 
@@ -353,7 +346,7 @@ pub fn param_set_value(c: &mut Client, path: &str, value: Value) -> Result<Value
 pub fn fetch_params(c: &mut Client, base: &ControlParams) -> Result<ControlParams> {
     let mut p = *base;
     for (path, v) in param_list(c)? {
-        p = params::set(&p, &path, v).map_err(|e| anyhow!("{path}: {e:?}"))?;
+        servo_core::protocol::params::set(&mut p, &path, v).map_err(|e| anyhow!("{path}: {e:?}"))?;
     }
     Ok(p)
 }

@@ -96,8 +96,16 @@ impl StreamReport {
 
 /// A refusal after which further points are pointless.
 fn stops_stream(r: &Reply) -> bool {
+    use servo_core::protocol::Error;
     use servo_core::CommandError as E;
-    matches!(r, Reply::Error(servo_core::protocol::Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed)))
+    match r {
+        Reply::Error(Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed)) => true,
+        // The core server's wording for the same refusals.
+        Reply::Error(Error::Stream { reason }) => {
+            ["faults latched", "not running", "not homed", "not commutated"].iter().any(|w| reason.contains(w))
+        }
+        _ => false,
+    }
 }
 
 /// Sends the rows as stream points. `paced`: at the rows' times on the
