@@ -23,9 +23,14 @@ pub fn paper_reference(rig: &RigConfig) -> Result<Vec<Row>> {
     }
     let x: Vec<f64> = trace.telemetry.iter().map(|t| f64::from(t.position_reference_m)).collect();
     let dt = f64::from(rig.control.rates.position_loop_divider) / f64::from(rig.control.rates.pwm_frequency_hz);
+    let v_max = f64::from(rig.control.trajectory.max_velocity_m_s);
     Ok((0..x.len())
         .map(|k| {
             let v = if k == 0 || k + 1 == x.len() { 0.0 } else { (x[k + 1] - x[k - 1]) / (2.0 * dt) };
+            // The S-curve cruises at exactly the limit; differences of its
+            // f32 samples overshoot it by rounding (≈1e-5 m/s), which the
+            // drive would refuse.
+            let v = v.clamp(-v_max, v_max);
             Row { t_s: k as f64 * dt, position_m: x[k], velocity_m_s: v, force_n: None }
         })
         .collect())
@@ -83,6 +88,7 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
             "stream_duration_s": report.duration_s,
             "wall_s": wall,
             "refusals": report.refusals.len(),
+            "refusal_runs": report.grouped().into_iter().take(10).collect::<Vec<_>>(),
             "telemetry_records": n,
             "faults": servo_core::FaultSet(faults).names().collect::<Vec<_>>(),
             "motor_tracking_rms_um": rms * 1e6,
