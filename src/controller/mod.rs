@@ -14,9 +14,11 @@ mod checks;
 mod commands;
 mod lifecycle;
 mod reactions;
+mod scope;
 
 pub use commands::{Command, CommandError, CommandOutcome};
 
+use crate::capture::Capture;
 use crate::compensation::Compensator;
 use crate::foc::{CurrentLoop, Dq};
 use crate::io::{PwmCommand, SensorSample};
@@ -26,6 +28,7 @@ use crate::motion::{EncoderTracker, ScurveMove, SetpointStream, SpeedLoop, StopR
 use crate::params::{ControlParams, ParamError, ValidatedParams};
 use crate::protection::{EmfWatch, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
+use crate::test_signals::TestRun;
 use core::f32::consts::PI;
 
 /// Period-independent constants, computed once so the 20 kHz path does no
@@ -115,6 +118,10 @@ fn periods(duration_s: f32, period_s: f32) -> u32 {
 #[repr(C)]
 pub struct Controller {
     mode: Mode,
+    /// Non-zero while a capture records ([`HOOK_CAPTURE`]) or a test runs
+    /// ([`HOOK_TEST`]): the one byte the period tests for both. It sits in
+    /// `mode`'s padding.
+    hooks: u8,
     faults: FaultSet,
     /// Conditions present at the last step, latched or not: a fault clears
     /// only when its condition has gone.
@@ -209,7 +216,14 @@ pub struct Controller {
     /// The planned move's velocity this position period, before any
     /// slowing by the regeneration bound.
     planned_velocity_m_s: f32,
+    // ---- scope and test signals (`scope.rs`) ----
+    test: TestRun,
+    capture: Capture,
 }
+
+/// `Controller::hooks` bits.
+const HOOK_CAPTURE: u8 = 1;
+const HOOK_TEST: u8 = 2;
 
 impl Controller {
     /// A controller for `params`. Invalid parameters give a controller that
@@ -254,6 +268,7 @@ impl Controller {
         Self {
             derived,
             mode: Mode::Disabled,
+            hooks: 0,
             faults: FaultSet::NONE,
             present: FaultSet::NONE,
             tick: 0,
@@ -310,6 +325,8 @@ impl Controller {
             telemetry: Telemetry::default(),
             stream: SetpointStream::default(),
             planned_velocity_m_s: 0.0,
+            test: TestRun::new(),
+            capture: Capture::new(),
             params,
         }
     }
@@ -449,6 +466,9 @@ impl Controller {
             Mode::Braking => self.braking_period(s, position_tick, speed_tick),
             Mode::Preloading => self.preload_period(s, position_tick, speed_tick),
         };
+        if self.hooks != 0 {
+            self.hooks_period(s);
+        }
         if position_tick {
             self.cut_telemetry();
         }
