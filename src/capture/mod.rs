@@ -156,9 +156,9 @@ impl Capture {
         self.state == CaptureState::Armed && self.trigger == trigger
     }
 
-    /// True if the next PWM period is a sampled one.
-    pub fn next_period_sampled(&self) -> bool {
-        self.countdown == 1
+    /// Armed with its pre-trigger samples all in the ring.
+    pub fn pre_trigger_filled(&self) -> bool {
+        self.filled >= self.pre_trigger
     }
 
     /// Checks `c` and arms the capture; nothing changes on refusal.

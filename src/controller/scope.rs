@@ -66,10 +66,17 @@ impl Controller {
         self.test.active()
     }
 
+    /// Pending (waiting for its loop's tick or a capture's pre-trigger
+    /// samples), running, or idle.
+    pub fn test_phase(&self) -> TestPhase {
+        self.test.phase
+    }
+
     /// Starts a test signal: only while `Running` (bridge on, holding, no
     /// move or stream, brake open), within the limits; the reason names the
-    /// bound on refusal. The test starts on the next tick of its loop and
-    /// triggers a capture armed with `TestStart` there; at its end the drive
+    /// bound on refusal. The test starts on the next tick of its loop (once
+    /// a capture armed with `TestStart` has its pre-trigger samples) and
+    /// triggers that capture there; at its end the drive
     /// holds (a position step at the new place; the others where the rod
     /// is). Faults still act during a test; a fault or `Disable` aborts it.
     pub fn start_test(&mut self, signal: TestSignal) -> Result<(), &'static str> {
@@ -299,7 +306,10 @@ impl Controller {
                     ChirpTarget::Speed => next_speed_tick,
                     ChirpTarget::Position => next_speed_tick && self.position_countdown == 1,
                 };
-                if ready {
+                // A capture waiting for this test gets its pre-trigger
+                // samples first.
+                let capture_ready = !self.capture.awaits(CaptureTrigger::TestStart) || self.capture.pre_trigger_filled();
+                if ready && capture_ready {
                     self.begin_test();
                 }
             }
