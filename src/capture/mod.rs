@@ -20,7 +20,14 @@
 
 mod store;
 
-pub use store::{CaptureStore, CAPTURE_STORE_CELLS, NAN_CODE};
+pub use store::{CaptureStore, CAPTURE_STORE_CELLS};
+
+/// The lowest code: a value at or below −full scale, or NaN (the cheap
+/// conversion of the 20 kHz path does not tell them apart); it reads back
+/// as −full scale · 32768/32767.
+pub const NAN_CODE: i16 = i16::MIN;
+
+use core::sync::atomic::{AtomicI16, Ordering};
 
 use crate::params::ControlParams;
 use crate::protocol::{CaptureConfig, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
@@ -92,7 +99,7 @@ pub struct Capture {
     pending: bool,
     count: u8,
     signal: [Signal; CAPTURE_SIGNALS_MAX],
-    /// Codes per unit, and the code of 0.
+    /// Codes per unit, and the code of 0 plus `ENCODE_OFFSET`.
     scale: [f32; CAPTURE_SIGNALS_MAX],
     bias: [f32; CAPTURE_SIGNALS_MAX],
     samples: u16,
@@ -196,7 +203,8 @@ impl Capture {
             let codes = FULL_SCALE_CODE / half;
             if let (Some(sc), Some(b), Some(sg)) = (scale.get_mut(k), bias.get_mut(k), signal.get_mut(k)) {
                 *sc = codes;
-                *b = -centre * codes;
+                // The code of 0, plus the offset `encode` works with.
+                *b = -centre * codes + ENCODE_OFFSET;
                 *sg = s;
             }
         }
@@ -259,31 +267,49 @@ impl Capture {
         self.signal.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
-    /// Stores one frame (`values` in slot order) of a sampled period.
-    pub fn record(&mut self, values: &[f32; CAPTURE_SIGNALS_MAX]) {
-        let Some(store) = self.store else {
-            self.countdown = 0;
-            return;
-        };
+    /// Starts the frame of a sampled period (acting on a pending
+    /// trigger); returns the frame's cells, one per signal, to fill with
+    /// [`Self::put`] in slot order.
+    #[inline(always)]
+    pub fn begin_frame(&mut self) -> Option<&'static [AtomicI16]> {
         if self.pending && self.state == CaptureState::Armed {
-            self.pending = false;
-            self.state = CaptureState::Triggered;
-            self.trigger_index = if self.filled < self.pre_trigger { self.filled } else { self.pre_trigger };
-            // write_frame < samples and trigger_index ≤ pre_trigger < samples.
-            self.first_frame = if self.write_frame >= self.trigger_index {
-                self.write_frame.wrapping_sub(self.trigger_index)
-            } else {
-                self.write_frame.wrapping_add(self.samples).wrapping_sub(self.trigger_index)
-            };
-            self.length = self.trigger_index.wrapping_add(self.post_left);
+            self.trigger();
         }
         let n = usize::from(self.count);
-        let base = usize::from(self.write_frame).wrapping_mul(n);
-        for (k, ((&v, &sc), &b)) in values.iter().zip(&self.scale).zip(&self.bias).take(n).enumerate() {
-            store.put(base.wrapping_add(k), encode(v, sc, b));
-        }
+        self.store?.cells(usize::from(self.write_frame).wrapping_mul(n), n)
+    }
+
+    #[inline(never)]
+    fn trigger(&mut self) {
+        self.pending = false;
+        self.state = CaptureState::Triggered;
+        self.trigger_index = if self.filled < self.pre_trigger { self.filled } else { self.pre_trigger };
+        // write_frame < samples and trigger_index ≤ pre_trigger < samples.
+        self.first_frame = if self.write_frame >= self.trigger_index {
+            self.write_frame.wrapping_sub(self.trigger_index)
+        } else {
+            self.write_frame.wrapping_add(self.samples).wrapping_sub(self.trigger_index)
+        };
+        self.length = self.trigger_index.wrapping_add(self.post_left);
+    }
+
+    /// The slots' signals, codes per unit and code offsets, for `put`.
+    #[inline(always)]
+    pub fn slots(&self) -> impl Iterator<Item = (Signal, f32, f32)> + '_ {
+        self.signal.iter().zip(&self.scale).zip(&self.bias).map(|((&s, &sc), &b)| (s, sc, b))
+    }
+
+    /// Stores `v` in `cell` with its slot's `scale` and `bias`.
+    #[inline(always)]
+    pub fn put(cell: &AtomicI16, v: f32, scale: f32, bias: f32) {
+        cell.store(encode(v, scale, bias), Ordering::Relaxed);
+    }
+
+    /// Ends the present frame; false once the capture is done.
+    #[inline(always)]
+    pub fn end_frame(&mut self) -> bool {
         self.write_frame = self.write_frame.wrapping_add(1);
-        if self.write_frame == self.samples {
+        if self.write_frame >= self.samples {
             self.write_frame = 0;
         }
         if self.state == CaptureState::Armed {
@@ -295,8 +321,20 @@ impl Capture {
             if self.post_left == 0 {
                 self.state = CaptureState::Done;
                 self.countdown = 0;
+                return false;
             }
         }
+        true
+    }
+
+    /// Stores one frame (`values` in slot order).
+    pub fn record(&mut self, values: &[f32; CAPTURE_SIGNALS_MAX]) {
+        if let Some(cells) = self.begin_frame() {
+            for (cell, (&v, (_, sc, b))) in cells.iter().zip(values.iter().zip(self.slots())) {
+                Self::put(cell, v, sc, b);
+            }
+        }
+        self.end_frame();
     }
 
     pub fn status(&self) -> CaptureStatus {
@@ -320,7 +358,7 @@ impl Capture {
             if let (Some(u), Some(o), Some(&sc), Some(&b)) = (unit_per_code.get_mut(k), offset.get_mut(k), self.scale.get(k), self.bias.get(k)) {
                 if sc > 0.0 {
                     *u = 1.0 / sc;
-                    *o = -b / sc;
+                    *o = -(b - ENCODE_OFFSET) / sc;
                 }
             }
         }
@@ -352,13 +390,17 @@ impl Default for Capture {
     }
 }
 
-/// `round(v·scale + bias)` saturated to ±32767; NaN to [`NAN_CODE`].
+/// Added to `v·scale + bias` so the code is a non-negative number whose
+/// truncation is the rounded code + 32768.
+const ENCODE_OFFSET: f32 = 32_768.5;
+
+/// `round(v·scale + bias)` (halves up), saturated to [−32768, 32767]; NaN
+/// gives −32768 ([`NAN_CODE`]). One multiply-add, the FPU's saturating
+/// conversion (`vcvt.u32.f32`: NaN and negatives to 0) and a saturation to
+/// 16 bits: the biased value is positive, so truncation is the floor.
 #[inline(always)]
 fn encode(v: f32, scale: f32, bias: f32) -> i16 {
-    let x = v * scale + bias;
-    if x.is_nan() {
-        return NAN_CODE;
-    }
-    let (_, bits) = crate::math::round_to_int(crate::math::clamp(x, -FULL_SCALE_CODE, FULL_SCALE_CODE));
-    bits as i32 as i16
+    // `bias` includes ENCODE_OFFSET (set at configure).
+    let u = (v * scale + bias) as u32;
+    (u.min(65_535) as i32).wrapping_sub(32_768) as i16
 }

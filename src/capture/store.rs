@@ -13,12 +13,11 @@ use core::sync::atomic::{AtomicI16, Ordering};
 
 use super::CaptureLayout;
 
+
 /// Cells in the store: 4 signals × 1024 samples, 2 × 2048 or 1 × 4096.
 pub const CAPTURE_STORE_CELLS: usize = 4096;
 
-/// The code a non-finite value is stored as; it reads back as NaN. Finite
-/// values saturate at ±32767.
-pub const NAN_CODE: i16 = i16::MIN;
+
 
 /// 8 KiB of samples. `const`-constructible: `static CAPTURE: CaptureStore =
 /// CaptureStore::new();` puts it in `.bss`.
@@ -38,16 +37,15 @@ impl CaptureStore {
         Self { cells: [const { AtomicI16::new(0) }; CAPTURE_STORE_CELLS] }
     }
 
+    /// The `n` cells from `start`, if inside the store.
     #[inline(always)]
-    pub(crate) fn put(&self, index: usize, code: i16) {
-        if let Some(c) = self.cells.get(index) {
-            c.store(code, Ordering::Relaxed);
-        }
+    pub(crate) fn cells(&self, start: usize, n: usize) -> Option<&[AtomicI16]> {
+        self.cells.get(start..start.wrapping_add(n))
     }
 
     #[inline(always)]
     fn get(&self, index: usize) -> i16 {
-        self.cells.get(index).map_or(NAN_CODE, |c| c.load(Ordering::Relaxed))
+        self.cells.get(index).map_or(0, |c| c.load(Ordering::Relaxed))
     }
 
     /// Values of `signal` (its slot in the configuration) from record sample
@@ -74,7 +72,7 @@ impl CaptureStore {
         }
         for v in out.iter_mut().take(n) {
             let code = self.get(frame.wrapping_mul(stride).wrapping_add(k));
-            *v = if code == NAN_CODE { f32::NAN } else { f32::from(code) * inv + offset };
+            *v = f32::from(code) * inv + offset;
             frame = frame.wrapping_add(1);
             if frame >= frames {
                 frame = 0;

@@ -7,13 +7,13 @@
 //! offsets at their own rates (speed, position), never per PWM period.
 
 use super::{Controller, HOOK_CAPTURE, HOOK_TEST};
-use crate::capture::{CaptureLayout, CaptureStore};
+use crate::capture::{Capture, CaptureLayout, CaptureStore};
 use crate::foc::Dq;
 use crate::io::SensorSample;
 use crate::lifecycle::Readiness;
 use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::ScurveMove;
-use crate::protocol::{CaptureConfig, CaptureStatus, CaptureTrigger, ChirpTarget, Signal, TestSignal, CAPTURE_SIGNALS_MAX};
+use crate::protocol::{CaptureConfig, CaptureStatus, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use crate::telemetry::Mode;
 use crate::test_signals::{Chirp, TestPhase, TestRun, TEST_DURATION_MAX_S};
 
@@ -256,18 +256,31 @@ impl Controller {
     #[inline(never)]
     pub(super) fn hooks_period(&mut self, s: &SensorSample) {
         if self.capture.tick() {
-            let mut v = [0.0; CAPTURE_SIGNALS_MAX];
-            for (slot, &sig) in v.iter_mut().zip(self.capture.signals()) {
-                *slot = self.signal_value(sig, s);
-            }
-            self.capture.record(&v);
+            self.capture_frame(s);
         }
         if self.test.active() {
             self.test_tick();
+            self.refresh_hooks();
         }
-        self.refresh_hooks();
     }
 
+    /// One frame of the capture: each slot's value, encoded and stored.
+    #[inline(always)]
+    fn capture_frame(&mut self, s: &SensorSample) {
+        if let Some(cells) = self.capture.begin_frame() {
+            for (cell, (sig, scale, bias)) in cells.iter().zip(self.capture.slots()) {
+                Capture::put(cell, self.signal_value(sig, s), scale, bias);
+            }
+        }
+        if !self.capture.end_frame() {
+            self.refresh_hooks();
+        }
+    }
+
+    /// One signal's value now: a load for most, a few operations for the
+    /// derived ones. Not inlined: inlined, the compiler loads every signal
+    /// up front for each frame.
+    #[inline(never)]
     fn signal_value(&self, sig: Signal, s: &SensorSample) -> f32 {
         match sig {
             Signal::CurrentD => self.current_dq.d,
