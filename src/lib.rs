@@ -14,6 +14,7 @@
 // `!(x < y)` is how this crate says "not less, or NaN": the negation is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod capture;
 pub mod compensation;
 pub mod controller;
 pub mod filters;
@@ -30,6 +31,7 @@ pub mod pi;
 pub mod protection;
 pub mod protocol;
 pub mod telemetry;
+pub mod test_signals;
 
 pub use controller::{Command, CommandError, CommandOutcome, Controller};
 pub use io::{PwmCommand, SensorSample};

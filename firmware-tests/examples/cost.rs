@@ -35,7 +35,9 @@ use servo_core::foc::{
     clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, Dq, SinCos,
 };
 use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
+use servo_core::capture::CaptureStore;
 use servo_core::observer;
+use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, Signal};
 use servo_core::pi::Pi;
 use servo_core::{ControlParams, Controller, Mode, PwmCommand, SensorSample};
 
@@ -178,6 +180,72 @@ fn each<I>(m: &Meter, n: u32, mut input: impl FnMut(u32) -> I, mut call: impl Fn
     s
 }
 
+/// `Controller::step` over the golden closed-loop script, measured per
+/// period kind: current, speed, position, bridge off; and whether a fault
+/// was seen. With `capture`, a four-signal capture records throughout.
+fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats, Stats, Stats, Stats, bool) {
+    let (mut cur, mut spd, mut pos, mut off) =
+        (Stats::new(), Stats::new(), Stats::new(), Stats::new());
+    // As the golden closed loop: the rigid plant carries no load and has
+    // no brake (a hold current preloaded into it would spin it).
+    let mut bench = p.commissioned();
+    bench.startup.expected_load_force_n = 0.0;
+    bench.brake.fitted = false;
+    let mut c = Controller::new(bench);
+    static STORE: CaptureStore = CaptureStore::new();
+    let cfg = CaptureConfig {
+        signals: heapless::Vec::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or_default(),
+        decimation: 1,
+        samples: 1024,
+        pre_trigger: 512,
+        trigger: CaptureTrigger::Command,
+    };
+    if capture {
+        c.attach_capture_store(&STORE);
+    }
+    let mut plant = RigidPlant::new(p, 48.0);
+    let mut noise = Noise::new(7);
+    let mut out = PwmCommand::OFF;
+    let periods = golden::CLOSED_LOOP_PERIODS;
+    let speed_div = p.rates.speed_loop_divider as usize;
+    let pos_div = p.rates.position_loop_divider as usize;
+    let mut faults_seen = false;
+    for k in 0..periods {
+        for (_, cmd) in CLOSED_LOOP_SCRIPT.iter().filter(|(at, _)| *at == k) {
+            let _ = c.command(*cmd);
+        }
+        plant.advance(&out);
+        let mut s = plant.sample();
+        for i in s.phase_current_a.iter_mut() {
+            *i += 0.03 * noise.next();
+        }
+        if capture {
+            if c.capture_status().state != CaptureState::Armed && c.capture_status().state != CaptureState::Triggered {
+                let _ = c.capture_configure(&cfg);
+            }
+            if k % 2000 == 1999 {
+                let _ = c.capture_trigger();
+            }
+        }
+        let running = c.mode() == Mode::Running;
+        let (o, t) = m.measure(|| step(&mut c, black_box(&s)));
+        out = black_box(o);
+        faults_seen |= !c.faults().is_empty();
+        // The controller counts periods from 1 at its first step.
+        let tick = k + 1;
+        if !running {
+            off.add(t);
+        } else if tick % pos_div == 0 {
+            pos.add(t);
+        } else if tick % speed_div == 0 {
+            spd.add(t);
+        } else {
+            cur.add(t);
+        }
+    }
+    (cur, spd, pos, off, faults_seen)
+}
+
 #[firmware_tests::entry]
 fn main() -> ! {
     let m = Meter::calibrate();
@@ -206,46 +274,10 @@ fn main() -> ! {
     };
 
     // ---- Controller::step in closed loop ---------------------------------
-    let (mut cur, mut spd, mut pos, mut off) =
-        (Stats::new(), Stats::new(), Stats::new(), Stats::new());
-    // As the golden closed loop: the rigid plant carries no load and has
-    // no brake (a hold current preloaded into it would spin it).
-    let mut bench = p.commissioned();
-    bench.startup.expected_load_force_n = 0.0;
-    bench.brake.fitted = false;
-    let mut c = Controller::new(bench);
-    let mut plant = RigidPlant::new(p, 48.0);
-    let mut noise = Noise::new(7);
-    let mut out = PwmCommand::OFF;
-    let periods = golden::CLOSED_LOOP_PERIODS;
-    let speed_div = p.rates.speed_loop_divider as usize;
-    let pos_div = p.rates.position_loop_divider as usize;
-    let mut faults_seen = false;
-    for k in 0..periods {
-        for (_, cmd) in CLOSED_LOOP_SCRIPT.iter().filter(|(at, _)| *at == k) {
-            let _ = c.command(*cmd);
-        }
-        plant.advance(&out);
-        let mut s = plant.sample();
-        for i in s.phase_current_a.iter_mut() {
-            *i += 0.03 * noise.next();
-        }
-        let running = c.mode() == Mode::Running;
-        let (o, t) = m.measure(|| step(&mut c, black_box(&s)));
-        out = black_box(o);
-        faults_seen |= !c.faults().is_empty();
-        // The controller counts periods from 1 at its first step.
-        let tick = k + 1;
-        if !running {
-            off.add(t);
-        } else if tick % pos_div == 0 {
-            pos.add(t);
-        } else if tick % speed_div == 0 {
-            spd.add(t);
-        } else {
-            cur.add(t);
-        }
-    }
+    let (cur, spd, pos, off, faults_seen) = closed_loop(&m, p, false);
+    // The same run with a capture recording four signals every period
+    // (re-armed whenever it is done): what the scope costs while it records.
+    let (cap_cur, cap_spd, _, _, _) = closed_loop(&m, p, true);
     push(row(
         &m,
         "step_current",
@@ -269,6 +301,18 @@ fn main() -> ! {
         "step_bridge_off",
         "Controller::step, bridge off (disabled)",
         &off,
+    ));
+    push(row(
+        &m,
+        "step_current_capturing",
+        "Controller::step, current loop only, a 4-signal capture recording every period",
+        &cap_cur,
+    ));
+    push(row(
+        &m,
+        "step_speed_capturing",
+        "Controller::step, speed + current loop, the same capture recording",
+        &cap_spd,
     ));
 
     // ---- observer ---------------------------------------------------------

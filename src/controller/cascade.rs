@@ -22,6 +22,13 @@ const REGEN_HOLD_TORQUE_MIN_N_M: f32 = 0.1;
 
 impl Controller {
     pub(super) fn rotor_state(&self) -> RotorState {
+        self.rotor_state_inline()
+    }
+
+    /// [`Self::rotor_state`] inlined into the 20 kHz path: the call, its
+    /// frame and return cost four instructions a period there.
+    #[inline(always)]
+    fn rotor_state_inline(&self) -> RotorState {
         let k = self.derived.electrical_rad_per_count;
         RotorState {
             // Not wrapped: within offset ± 2π·pole_pairs, which `sincos`
@@ -39,7 +46,7 @@ impl Controller {
         if speed_tick {
             self.speed_period();
         }
-        let rotor = self.rotor_state();
+        let rotor = self.rotor_state_inline();
         self.current_period(s, rotor)
     }
 
@@ -64,6 +71,11 @@ impl Controller {
             lo = crate::math::max(lo, -reachable);
             hi = crate::math::min(hi, reachable);
         }
+        if self.test.suspends_speed() {
+            // A current step holds the q reference, inside today's bound.
+            self.current_reference.q = crate::math::clamp(self.current_reference.q, lo, hi);
+            return;
+        }
         if self.mode == Mode::Homing && !self.homing_backing_off {
             // Around the hold current: lifts the load, pushes into the stop
             // with a bounded force.
@@ -79,7 +91,8 @@ impl Controller {
             self.speed_rad_s(),
             (lo, hi),
         );
-        self.current_reference.q = out.current_q_reference_a;
+        // A current chirp rides on the loop's output (0 without a test).
+        self.current_reference.q = out.current_q_reference_a + self.test.current_offset_a;
         if out.current_limited {
             self.limits.insert(LimitFlags::CURRENT);
         }
@@ -171,6 +184,10 @@ impl Controller {
 
     #[inline(never)]
     fn position_period(&mut self, s: &SensorSample) {
+        if self.test.suspends_position() {
+            self.test_track_position();
+            return;
+        }
         let r = self.next_reference();
         self.position_reference_m = r.position_m;
         let observer_shift = if self.mode == Mode::Running {
@@ -193,7 +210,8 @@ impl Controller {
         self.external_shift_applied_m +=
             crate::math::clamp(self.position_shift_m - self.external_shift_applied_m, -step_max, step_max);
         self.applied_shift_m = observer_shift + self.external_shift_applied_m;
-        let mut command = r.position_m + self.applied_shift_m;
+        // A position chirp rides on the command (0 without a test).
+        let mut command = r.position_m + self.applied_shift_m + self.test.position_offset_m;
         if self.stroke_limits_active() {
             let l = &self.params.limits;
             let (clamped_command, clamped) = clamp_to_stroke(command, l.stroke_min_m, l.stroke_max_m);
@@ -204,7 +222,7 @@ impl Controller {
         }
         self.position_command_m = command;
         let out = position_step(&self.params, command, r.velocity_m_s, r.acceleration_m_s2, self.motor_position_m());
-        self.speed_reference_rad_s = out.speed_reference_rad_s;
+        self.speed_reference_rad_s = out.speed_reference_rad_s + self.test.speed_offset_rad_s;
         self.acceleration_reference_rad_s2 = out.acceleration_reference_rad_s2;
         if out.speed_limited {
             self.limits.insert(LimitFlags::SPEED);

@@ -110,9 +110,19 @@ const LOSES_POSITION: FaultSet = FaultSet(FaultSet::ENCODER_JUMP.0 | FaultSet::E
 impl Controller {
     /// Handles one command from thread context.
     pub fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        if self.test.active()
+            && !matches!(
+                cmd,
+                Command::Disable | Command::Enable | Command::ClearFaults | Command::StreamEnd | Command::SetCompensation { .. } | Command::SetPositionShift { .. }
+            )
+        {
+            // A test owns the references until it ends (or `Disable`).
+            return Err(CommandError::Busy);
+        }
         match cmd {
             Command::Enable => self.enable(),
             Command::Disable => {
+                self.finish_test(false);
                 self.start_up_sequence = false;
                 self.stream.stop();
                 if self.params.brake.fitted && matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Homing | Mode::Preloading) {

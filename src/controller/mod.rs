@@ -15,10 +15,12 @@ mod commands;
 mod lifecycle;
 mod params_apply;
 mod reactions;
+mod scope;
 
 pub use commands::{Command, CommandError, CommandOutcome};
 pub use params_apply::ApplyError;
 
+use crate::capture::Capture;
 use crate::compensation::Compensator;
 use crate::foc::{CurrentLoop, Dq};
 use crate::io::{PwmCommand, SensorSample};
@@ -28,6 +30,7 @@ use crate::motion::{EncoderTracker, ScurveMove, SetpointStream, SpeedLoop, StopR
 use crate::params::{ControlParams, ParamError, ValidatedParams};
 use crate::protection::{EmfWatch, FaultSet, LimitFlags, OpenPhaseMonitor, ThermalModel};
 use crate::telemetry::{Mode, Telemetry};
+use crate::test_signals::TestRun;
 use core::f32::consts::PI;
 
 /// Period-independent constants, computed once so the 20 kHz path does no
@@ -119,6 +122,10 @@ fn periods(duration_s: f32, period_s: f32) -> u32 {
 #[repr(C)]
 pub struct Controller {
     mode: Mode,
+    /// Non-zero while a capture records ([`HOOK_CAPTURE`]) or a test runs
+    /// ([`HOOK_TEST`]): the one byte the period tests for both. It sits in
+    /// `mode`'s padding.
+    hooks: u8,
     faults: FaultSet,
     /// Conditions present at the last step, latched or not: a fault clears
     /// only when its condition has gone.
@@ -215,7 +222,14 @@ pub struct Controller {
     planned_velocity_m_s: f32,
     /// `Command::Stop` is ramping the reference down (`stop`) to rest.
     commanded_stop: bool,
+    // ---- scope and test signals (`scope.rs`) ----
+    test: TestRun,
+    capture: Capture,
 }
+
+/// `Controller::hooks` bits.
+const HOOK_CAPTURE: u8 = 1;
+const HOOK_TEST: u8 = 2;
 
 impl Controller {
     /// A controller for `params`. Invalid parameters give a controller that
@@ -260,6 +274,7 @@ impl Controller {
         Self {
             derived,
             mode: Mode::Disabled,
+            hooks: 0,
             faults: FaultSet::NONE,
             present: FaultSet::NONE,
             tick: 0,
@@ -317,6 +332,8 @@ impl Controller {
             stream: SetpointStream::default(),
             planned_velocity_m_s: 0.0,
             commanded_stop: false,
+            test: TestRun::new(),
+            capture: Capture::new(),
             params,
         }
     }
@@ -466,6 +483,9 @@ impl Controller {
             Mode::Braking => self.braking_period(s, position_tick, speed_tick),
             Mode::Preloading => self.preload_period(s, position_tick, speed_tick),
         };
+        if self.hooks != 0 {
+            self.hooks_period(s);
+        }
         if position_tick {
             self.cut_telemetry();
         }

@@ -96,3 +96,33 @@ pub trait ParamStore {
     /// stored. A record longer than `buf` is an error.
     fn load(&mut self, buf: &mut [u8]) -> Result<usize, Text>;
 }
+
+/// The capture and test requests on a [`Controller`] that the caller owns
+/// between two steps: the one mapping the simulator and the board's
+/// interrupt-side request handler share, so both answer alike.
+pub mod on_controller {
+    use super::{CaptureReply, Text};
+    use crate::controller::Controller;
+    use crate::protocol::messages::{CaptureRequest, TestSignal, CAPTURE_CHUNK_MAX};
+    use crate::protocol::server::text;
+
+    pub fn capture(c: &mut Controller, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+        match request {
+            CaptureRequest::Configure(config) => c.capture_configure(config).map(|()| CaptureReply::Ok).map_err(text),
+            CaptureRequest::Trigger => c.capture_trigger().map(|()| CaptureReply::Ok).map_err(text),
+            CaptureRequest::Status => Ok(CaptureReply::Status(c.capture_status())),
+            CaptureRequest::Read { signal, start, count } => {
+                let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
+                let want = usize::from(*count).min(CAPTURE_CHUNK_MAX);
+                let out = buf.get_mut(..want).unwrap_or(&mut []);
+                let n = c.capture_read(*signal, *start, out).map_err(text)?;
+                let values = heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| text("capture chunk too long"))?;
+                Ok(CaptureReply::Data { signal: *signal, start: *start, values })
+            }
+        }
+    }
+
+    pub fn test_signal(c: &mut Controller, signal: &TestSignal) -> Result<(), Text> {
+        c.start_test(*signal).map_err(text)
+    }
+}

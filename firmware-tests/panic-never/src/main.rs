@@ -183,6 +183,47 @@ mod protocol {
     }
 }
 
+/// The scope and the test signals (the protocol server's calls, on the
+/// board through the interrupt's request slot).
+fn scope(c: &mut Controller) {
+    use servo_core::capture::CaptureStore;
+    use servo_core::protocol::{heapless::Vec, CaptureConfig, CaptureTrigger, ChirpTarget, Signal, TestSignal};
+    static STORE: CaptureStore = CaptureStore::new();
+    let sel = opaque(addr_of!(SELECT));
+    let arg = opaque(addr_of!(ARG));
+    if sel == 3 {
+        c.attach_capture_store(&STORE);
+    }
+    let mut signals = Vec::new();
+    let all = [Signal::CurrentQ, Signal::Speed, Signal::MotorPosition, Signal::ElectricalAngle, Signal::PhaseCurrentC];
+    for k in 0..(sel & 7) as usize {
+        let _ = signals.push(all.get(k % all.len()).copied().unwrap_or(Signal::BusVoltage));
+    }
+    let cfg = CaptureConfig {
+        signals,
+        decimation: (sel >> 8) as u16,
+        samples: (sel >> 12) as u16,
+        pre_trigger: (sel >> 16) as u16,
+        trigger: if sel & 8 != 0 { CaptureTrigger::Fault } else { CaptureTrigger::TestStart },
+    };
+    sink(0, c.capture_configure(&cfg).is_ok() as u32);
+    sink(1, c.capture_trigger().is_ok() as u32 ^ c.capture_status().trigger_index as u32);
+    let mut buf = [0.0f32; 64];
+    sink(2, c.capture_read((sel >> 20) as u8, (sel >> 4) as u16, &mut buf[..(sel as usize >> 24) & 63]).unwrap_or(0) as u32);
+    sink(3, buf[5].to_bits());
+    let t = match sel % 5 {
+        0 => TestSignal::CurrentStep { axis_q: sel & 16 != 0, amplitude_a: arg, duration_s: arg },
+        1 => TestSignal::SpeedStep { amplitude_rad_s: arg, duration_s: arg },
+        2 => TestSignal::PositionStep { distance_m: arg, duration_s: arg },
+        3 => TestSignal::Chirp { target: ChirpTarget::Current, amplitude: arg, start_hz: arg, end_hz: arg * 2.0, duration_s: arg },
+        _ => TestSignal::Chirp { target: ChirpTarget::Position, amplitude: arg, start_hz: arg, end_hz: arg * 2.0, duration_s: arg },
+    };
+    sink(4, c.start_test(t).is_ok() as u32 ^ c.test_running() as u32);
+    if sel == 77 {
+        c.stop_test();
+    }
+}
+
 #[entry]
 fn main() -> ! {
     let params = opaque(addr_of!(PARAMS));
@@ -215,6 +256,7 @@ fn main() -> ! {
         }
         // The main task's calls.
         command(&mut c);
+        scope(&mut c);
         mailbox();
         let t = c.telemetry();
         sink(

@@ -1,0 +1,406 @@
+//! The scope: up to [`CAPTURE_SIGNALS_MAX`] signals recorded in the PWM
+//! interrupt at up to the PWM rate, with decimation, a pre-trigger ring and a
+//! trigger (test start, fault latch, command). docs/capture.md has the
+//! signals, their scales and resolutions, and the RAM.
+//!
+//! Samples are stored as `i16` codes against a fixed full scale per signal
+//! taken from the parameters ([`full_scale`]), interleaved one frame (all
+//! signals of one sample instant) after the other in a [`CaptureStore`]
+//! the controller writes through a `&'static`. The store is separate from
+//! the controller so that the controller stays small enough to build and
+//! hand over on the stack, and so thread mode can read a done capture
+//! straight from the store (the interrupt writes nothing once a capture is
+//! done, until the next configure).
+//!
+//! Timing: samples sit on one grid of `decimation` PWM periods from the
+//! configure on; the trigger sample is the first sample at or after the
+//! trigger event (so with decimation 1, the trigger's own period). A test
+//! start happens in a sampled period when the capture waits for it (see
+//! `controller::scope`).
+
+mod store;
+
+pub use store::{CaptureStore, CAPTURE_STORE_CELLS};
+
+/// The lowest code: a value at or below −full scale, or NaN (the cheap
+/// conversion of the 20 kHz path does not tell them apart); it reads back
+/// as −full scale · 32768/32767.
+pub const NAN_CODE: i16 = i16::MIN;
+
+use core::sync::atomic::{AtomicI16, Ordering};
+
+use crate::params::ControlParams;
+use crate::protocol::{CaptureConfig, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
+
+/// Largest code a finite value is stored as (the full scale).
+pub const FULL_SCALE_CODE: f32 = 32_767.0;
+
+/// Share of the stroke span added at each end of the position full scale
+/// (homing and overtravel go beyond the stroke).
+const POSITION_MARGIN: f32 = 0.1;
+
+/// `(centre, half range)` in the signal's unit: a value is stored as
+/// `round((v − centre) / half · 32767)`, saturating at ±32767.
+pub fn full_scale(signal: Signal, p: &ControlParams) -> (f32, f32) {
+    let r = &p.ratings;
+    match signal {
+        Signal::CurrentD
+        | Signal::CurrentQ
+        | Signal::CurrentQReference
+        | Signal::CurrentDReference
+        | Signal::PhaseCurrentA
+        | Signal::PhaseCurrentB
+        | Signal::PhaseCurrentC => (0.0, r.inverter_peak_current_a),
+        Signal::VoltageD | Signal::VoltageQ => (0.0, r.bus_max_voltage_v),
+        Signal::Speed | Signal::SpeedReference => (0.0, 2.0 * r.speed_max_rad_s),
+        Signal::MotorPosition | Signal::PositionCommand | Signal::PositionReference => {
+            let (lo, hi) = (p.limits.stroke_min_m, p.limits.stroke_max_m);
+            ((lo + hi) * 0.5, (hi - lo) * (0.5 + POSITION_MARGIN))
+        }
+        // 0 … rating, with a quarter of it either side.
+        Signal::BusVoltage => (0.5 * r.bus_max_voltage_v, 0.75 * r.bus_max_voltage_v),
+        Signal::ElectricalAngle => (0.0, core::f32::consts::PI),
+    }
+}
+
+/// One code of `signal`, in its unit.
+pub fn resolution(signal: Signal, p: &ControlParams) -> f32 {
+    full_scale(signal, p).1 / FULL_SCALE_CODE
+}
+
+/// What a reader needs to turn a done capture's codes back into values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CaptureLayout {
+    /// Signals per frame.
+    pub signals: u8,
+    pub signal: [Signal; CAPTURE_SIGNALS_MAX],
+    /// Frames in the ring (the configured samples per signal).
+    pub samples: u16,
+    /// Ring frame of record sample 0 (the oldest).
+    pub first_frame: u16,
+    /// Samples per signal in the record (pre-trigger kept + post-trigger).
+    pub length: u16,
+    pub trigger_index: u16,
+    pub sample_period_s: f32,
+    pub unit_per_code: [f32; CAPTURE_SIGNALS_MAX],
+    pub offset: [f32; CAPTURE_SIGNALS_MAX],
+}
+
+/// The capture's state, kept in the controller.
+#[derive(Debug)]
+pub struct Capture {
+    store: Option<&'static CaptureStore>,
+    /// PWM periods to the next sample; 0 while not recording.
+    countdown: u16,
+    decimation: u16,
+    state: CaptureState,
+    trigger: CaptureTrigger,
+    /// A trigger event seen; acted on at the next sample.
+    pending: bool,
+    count: u8,
+    signal: [Signal; CAPTURE_SIGNALS_MAX],
+    /// Codes per unit, and the code of 0 plus `ENCODE_OFFSET`.
+    scale: [f32; CAPTURE_SIGNALS_MAX],
+    bias: [f32; CAPTURE_SIGNALS_MAX],
+    samples: u16,
+    pre_trigger: u16,
+    /// Frames written since arming, up to `samples`.
+    filled: u16,
+    write_frame: u16,
+    post_left: u16,
+    trigger_index: u16,
+    first_frame: u16,
+    length: u16,
+    sample_period_s: f32,
+}
+
+impl Capture {
+    pub const fn new() -> Self {
+        Self {
+            store: None,
+            countdown: 0,
+            decimation: 1,
+            state: CaptureState::Idle,
+            trigger: CaptureTrigger::Command,
+            pending: false,
+            count: 0,
+            signal: [Signal::CurrentQ; CAPTURE_SIGNALS_MAX],
+            scale: [0.0; CAPTURE_SIGNALS_MAX],
+            bias: [0.0; CAPTURE_SIGNALS_MAX],
+            samples: 0,
+            pre_trigger: 0,
+            filled: 0,
+            write_frame: 0,
+            post_left: 0,
+            trigger_index: 0,
+            first_frame: 0,
+            length: 0,
+            sample_period_s: 0.0,
+        }
+    }
+
+    pub fn attach(&mut self, store: &'static CaptureStore) {
+        *self = Self::new();
+        self.store = Some(store);
+    }
+
+    pub fn store(&self) -> Option<&'static CaptureStore> {
+        self.store
+    }
+
+    /// True while samples are being written (armed or triggered).
+    #[inline(always)]
+    pub fn recording(&self) -> bool {
+        self.countdown != 0
+    }
+
+    pub fn state(&self) -> CaptureState {
+        self.state
+    }
+
+    /// Armed and waiting for this trigger.
+    pub fn awaits(&self, trigger: CaptureTrigger) -> bool {
+        self.state == CaptureState::Armed && self.trigger == trigger
+    }
+
+    /// Armed with its pre-trigger samples all in the ring.
+    pub fn pre_trigger_filled(&self) -> bool {
+        self.filled >= self.pre_trigger
+    }
+
+    /// Checks `c` and arms the capture; nothing changes on refusal.
+    pub fn configure(&mut self, c: &CaptureConfig, p: &ControlParams) -> Result<(), &'static str> {
+        if self.store.is_none() {
+            return Err("no capture store attached");
+        }
+        let n = c.signals.len();
+        if n == 0 {
+            return Err("no signals");
+        }
+        if n > CAPTURE_SIGNALS_MAX {
+            return Err("more than 4 signals");
+        }
+        if c.decimation == 0 {
+            return Err("decimation 0");
+        }
+        if c.samples < 2 {
+            return Err("fewer than 2 samples");
+        }
+        if usize::from(c.samples).saturating_mul(n) > CAPTURE_STORE_CELLS {
+            return Err("samples x signals beyond the 4096-value buffer");
+        }
+        if c.pre_trigger >= c.samples {
+            return Err("pre-trigger not below samples");
+        }
+        let mut scale = [0.0; CAPTURE_SIGNALS_MAX];
+        let mut bias = [0.0; CAPTURE_SIGNALS_MAX];
+        let mut signal = [Signal::CurrentQ; CAPTURE_SIGNALS_MAX];
+        for (k, &s) in c.signals.iter().enumerate() {
+            let (centre, half) = full_scale(s, p);
+            if !(half > 0.0 && half.is_finite() && centre.is_finite()) {
+                return Err("a signal's full scale is not positive (ratings, stroke)");
+            }
+            let codes = FULL_SCALE_CODE / half;
+            if let (Some(sc), Some(b), Some(sg)) = (scale.get_mut(k), bias.get_mut(k), signal.get_mut(k)) {
+                *sc = codes;
+                // The code of 0, plus the offset `encode` works with.
+                *b = -centre * codes + ENCODE_OFFSET;
+                *sg = s;
+            }
+        }
+        *self = Self {
+            store: self.store,
+            countdown: 1,
+            decimation: c.decimation,
+            state: CaptureState::Armed,
+            trigger: c.trigger,
+            pending: false,
+            count: n as u8,
+            signal,
+            scale,
+            bias,
+            samples: c.samples,
+            pre_trigger: c.pre_trigger,
+            filled: 0,
+            write_frame: 0,
+            post_left: c.samples.saturating_sub(c.pre_trigger),
+            trigger_index: 0,
+            first_frame: 0,
+            length: 0,
+            sample_period_s: f32::from(c.decimation) / p.rates.pwm_frequency_hz,
+        };
+        Ok(())
+    }
+
+    /// A trigger event of kind `kind`: taken if the capture is armed for it.
+    pub fn event(&mut self, kind: CaptureTrigger) {
+        if self.awaits(kind) {
+            self.pending = true;
+        }
+    }
+
+    /// Triggers an armed capture at its next sample, whatever it waits for.
+    pub fn trigger_now(&mut self) -> Result<(), &'static str> {
+        if self.state != CaptureState::Armed {
+            return Err("capture not armed");
+        }
+        self.pending = true;
+        Ok(())
+    }
+
+    /// Counts one PWM period down; true when this period is sampled.
+    #[inline(always)]
+    pub fn tick(&mut self) -> bool {
+        if self.countdown == 0 {
+            return false;
+        }
+        self.countdown = self.countdown.wrapping_sub(1);
+        if self.countdown != 0 {
+            return false;
+        }
+        self.countdown = self.decimation;
+        true
+    }
+
+    /// The signals this capture records, in slot order.
+    pub fn signals(&self) -> &[Signal] {
+        self.signal.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+
+    /// Starts the frame of a sampled period (acting on a pending
+    /// trigger); returns the frame's cells, one per signal, to fill with
+    /// [`Self::put`] in slot order.
+    #[inline(always)]
+    pub fn begin_frame(&mut self) -> Option<&'static [AtomicI16]> {
+        if self.pending && self.state == CaptureState::Armed {
+            self.trigger();
+        }
+        let n = usize::from(self.count);
+        self.store?.cells(usize::from(self.write_frame).wrapping_mul(n), n)
+    }
+
+    #[inline(never)]
+    fn trigger(&mut self) {
+        self.pending = false;
+        self.state = CaptureState::Triggered;
+        self.trigger_index = if self.filled < self.pre_trigger { self.filled } else { self.pre_trigger };
+        // write_frame < samples and trigger_index ≤ pre_trigger < samples.
+        self.first_frame = if self.write_frame >= self.trigger_index {
+            self.write_frame.wrapping_sub(self.trigger_index)
+        } else {
+            self.write_frame.wrapping_add(self.samples).wrapping_sub(self.trigger_index)
+        };
+        self.length = self.trigger_index.wrapping_add(self.post_left);
+    }
+
+    /// The slots' signals, codes per unit and code offsets, for `put`.
+    #[inline(always)]
+    pub fn slots(&self) -> impl Iterator<Item = (Signal, f32, f32)> + '_ {
+        self.signal.iter().zip(&self.scale).zip(&self.bias).map(|((&s, &sc), &b)| (s, sc, b))
+    }
+
+    /// Stores `v` in `cell` with its slot's `scale` and `bias`.
+    #[inline(always)]
+    pub fn put(cell: &AtomicI16, v: f32, scale: f32, bias: f32) {
+        cell.store(encode(v, scale, bias), Ordering::Relaxed);
+    }
+
+    /// Ends the present frame; false once the capture is done.
+    #[inline(always)]
+    pub fn end_frame(&mut self) -> bool {
+        self.write_frame = self.write_frame.wrapping_add(1);
+        if self.write_frame >= self.samples {
+            self.write_frame = 0;
+        }
+        if self.state == CaptureState::Armed {
+            if self.filled < self.samples {
+                self.filled = self.filled.wrapping_add(1);
+            }
+        } else {
+            self.post_left = self.post_left.saturating_sub(1);
+            if self.post_left == 0 {
+                self.state = CaptureState::Done;
+                self.countdown = 0;
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Stores one frame (`values` in slot order).
+    pub fn record(&mut self, values: &[f32; CAPTURE_SIGNALS_MAX]) {
+        if let Some(cells) = self.begin_frame() {
+            for (cell, (&v, (_, sc, b))) in cells.iter().zip(values.iter().zip(self.slots())) {
+                Self::put(cell, v, sc, b);
+            }
+        }
+        self.end_frame();
+    }
+
+    pub fn status(&self) -> CaptureStatus {
+        CaptureStatus {
+            state: self.state,
+            signals: self.count,
+            samples: if self.state == CaptureState::Done { self.length } else { self.samples },
+            sample_period_s: self.sample_period_s,
+            trigger_index: self.trigger_index,
+        }
+    }
+
+    /// The layout of a done capture.
+    pub fn layout(&self) -> Result<CaptureLayout, &'static str> {
+        if self.state != CaptureState::Done {
+            return Err("capture not done");
+        }
+        let mut unit_per_code = [0.0; CAPTURE_SIGNALS_MAX];
+        let mut offset = [0.0; CAPTURE_SIGNALS_MAX];
+        for k in 0..CAPTURE_SIGNALS_MAX {
+            if let (Some(u), Some(o), Some(&sc), Some(&b)) = (unit_per_code.get_mut(k), offset.get_mut(k), self.scale.get(k), self.bias.get(k)) {
+                if sc > 0.0 {
+                    *u = 1.0 / sc;
+                    *o = -(b - ENCODE_OFFSET) / sc;
+                }
+            }
+        }
+        Ok(CaptureLayout {
+            signals: self.count,
+            signal: self.signal,
+            samples: self.samples,
+            first_frame: self.first_frame,
+            length: self.length,
+            trigger_index: self.trigger_index,
+            sample_period_s: self.sample_period_s,
+            unit_per_code,
+            offset,
+        })
+    }
+
+    /// Reads `out.len()` values (or to the record's end) of slot `signal`
+    /// from record sample `start` (0 = oldest).
+    pub fn read(&self, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, &'static str> {
+        let layout = self.layout()?;
+        let store = self.store.ok_or("no capture store attached")?;
+        store.read(&layout, signal, start, out)
+    }
+}
+
+impl Default for Capture {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Added to `v·scale + bias` so the code is a non-negative number whose
+/// truncation is the rounded code + 32768.
+const ENCODE_OFFSET: f32 = 32_768.5;
+
+/// `round(v·scale + bias)` (halves up), saturated to [−32768, 32767]; NaN
+/// gives −32768 ([`NAN_CODE`]). One multiply-add, the FPU's saturating
+/// conversion (`vcvt.u32.f32`: NaN and negatives to 0) and a saturation to
+/// 16 bits: the biased value is positive, so truncation is the floor.
+#[inline(always)]
+fn encode(v: f32, scale: f32, bias: f32) -> i16 {
+    // `bias` includes ENCODE_OFFSET (set at configure).
+    let u = (v * scale + bias) as u32;
+    (u.min(65_535) as i32).wrapping_sub(32_768) as i16
+}

@@ -1,0 +1,83 @@
+//! Where the samples live: a static array of `i16` cells, written by the
+//! PWM interrupt through a shared reference and read by anyone once a
+//! capture is done.
+//!
+//! The cells are `AtomicI16`: on the Cortex-M4 a relaxed store or load is a
+//! plain `strh`/`ldrsh`, so they cost nothing over a plain array, and the
+//! store can be a `static` that both the interrupt (through the controller)
+//! and thread mode hold a `&'static` to, without `unsafe`. The interrupt
+//! stops writing once a capture is done (until the next configure), so a
+//! reader with a [`CaptureLayout`] of a done capture sees finished values.
+
+use core::sync::atomic::{AtomicI16, Ordering};
+
+use super::CaptureLayout;
+
+
+/// Cells in the store: 4 signals × 1024 samples, 2 × 2048 or 1 × 4096.
+pub const CAPTURE_STORE_CELLS: usize = 4096;
+
+
+
+/// 8 KiB of samples. `const`-constructible: `static CAPTURE: CaptureStore =
+/// CaptureStore::new();` puts it in `.bss`.
+#[derive(Debug)]
+pub struct CaptureStore {
+    cells: [AtomicI16; CAPTURE_STORE_CELLS],
+}
+
+impl Default for CaptureStore {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CaptureStore {
+    pub const fn new() -> Self {
+        Self { cells: [const { AtomicI16::new(0) }; CAPTURE_STORE_CELLS] }
+    }
+
+    /// The `n` cells from `start`, if inside the store.
+    #[inline(always)]
+    pub(crate) fn cells(&self, start: usize, n: usize) -> Option<&[AtomicI16]> {
+        self.cells.get(start..start.wrapping_add(n))
+    }
+
+    #[inline(always)]
+    fn get(&self, index: usize) -> i16 {
+        self.cells.get(index).map_or(0, |c| c.load(Ordering::Relaxed))
+    }
+
+    /// Values of `signal` (its slot in the configuration) from record sample
+    /// `start` (0 = oldest) into `out`, in engineering units; returns how
+    /// many (fewer than `out.len()` at the record's end).
+    pub fn read(&self, layout: &CaptureLayout, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, &'static str> {
+        let k = usize::from(signal);
+        if k >= usize::from(layout.signals) {
+            return Err("no such signal in this capture");
+        }
+        if start >= layout.length {
+            return Err("start beyond the record");
+        }
+        let (Some(&inv), Some(&offset)) = (layout.unit_per_code.get(k), layout.offset.get(k)) else {
+            return Err("no such signal in this capture");
+        };
+        let n = out.len().min(usize::from(layout.length.saturating_sub(start)));
+        let frames = usize::from(layout.samples);
+        let stride = usize::from(layout.signals);
+        // first_frame < samples and start < length ≤ samples: one wrap at most.
+        let mut frame = usize::from(layout.first_frame).saturating_add(usize::from(start));
+        if frame >= frames {
+            frame = frame.saturating_sub(frames);
+        }
+        for v in out.iter_mut().take(n) {
+            let code = self.get(frame.wrapping_mul(stride).wrapping_add(k));
+            *v = f32::from(code) * inv + offset;
+            frame = frame.wrapping_add(1);
+            if frame >= frames {
+                frame = 0;
+            }
+        }
+        Ok(n)
+    }
+}
