@@ -14,6 +14,6 @@ fn the_paper_reference_streamed_at_1_khz_meets_the_bar() {
     assert!(s["faults"].as_array().unwrap().is_empty());
     assert!(s["motor_tracking_rms_um"].as_f64().unwrap() <= 5.0);
     assert!(s["motor_tracking_max_um"].as_f64().unwrap() <= 50.0);
-    assert_eq!(s["capture"]["samples"], 8192);
+    assert_eq!(s["capture"]["samples"], servo_core::capture::CAPTURE_STORE_CELLS / 4);
     assert!(dir.path().join("summary.json").exists() && dir.path().join("capture.csv").exists());
 }

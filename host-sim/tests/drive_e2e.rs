@@ -247,19 +247,37 @@ fn a_capture_is_armed_triggered_and_uploaded() {
 }
 
 #[test]
-fn step_test_waits_for_the_core_test_signal_or_runs() {
-    // Until `Controller::start_test` is merged the drive refuses test
-    // signals with a reason; afterwards the same call yields a capture.
+fn a_step_test_is_captured_analysed_and_predicted() {
     let d = Drive::start(None);
     let mut c = d.connect();
     enabled(&mut c);
+    let dir = tempfile::tempdir().unwrap();
+    let rig = RigConfig::nominal().unwrap();
     let spec = tool::test::Spec::step(tool::test::Target::Position, 0.001, 0.2);
-    match tool::test::capture_test(&mut c, &spec, 20_000.0) {
-        Ok(cap) => {
-            let f = tool::analysis::step_figures(&cap.values[1], cap.dt_s, cap.trigger_index as f64 * cap.dt_s, 0.001);
-            println!("{f:?}");
-            assert!(f.rise_time_s.is_some());
-        }
-        Err(e) => assert!(e.to_string().contains("start_test"), "{e}"),
+    let s = tool::test::run(&mut c, &rig, &spec, dir.path()).unwrap();
+    println!("{}", serde_json::to_string_pretty(&s).unwrap());
+    for f in ["capture.csv", "prediction.csv", "response.png", "summary.json"] {
+        assert!(dir.path().join(f).exists(), "{f}");
     }
+    // A 1 mm position step: the motor side gets there, settles, and the
+    // simulator (same rig, same gains) predicts it closely.
+    let m = &s["measured"]["step"];
+    let p = &s["predicted"]["step"];
+    let change = m["final_value"].as_f64().unwrap() - m["initial"].as_f64().unwrap();
+    assert!((change - 0.001).abs() < 5e-5, "{m}");
+    let (rm, rp) = (m["rise_time_s"].as_f64().unwrap(), p["rise_time_s"].as_f64().unwrap());
+    assert!(rm > 0.0 && rm < 0.1 && (rm - rp).abs() < 0.005, "{rm} vs {rp}");
+    assert!(m["settling_time_s"].as_f64().unwrap() < 0.2, "{m}");
+    // A chirp on the position loop: FRF figures from H1.
+    let spec = tool::test::Spec::chirp(tool::test::Target::Position, 0.0002, 1.0, 100.0, 1.0);
+    let s = tool::test::run(&mut c, &rig, &spec, dir.path()).unwrap();
+    let f = &s["measured"]["frf"];
+    println!("{f}");
+    assert!(f["bandwidth_3db_hz"].as_f64().unwrap() > 3.0, "{f}");
+    assert!(f["phase_margin_deg"].as_f64().unwrap() > 45.0, "{f}");
+    assert!(dir.path().join("bode.png").exists());
+    // A chirp too long for the capture store is refused with what fits.
+    let spec = tool::test::Spec::chirp(tool::test::Target::Current, 1.0, 50.0, 3000.0, 1.0);
+    let e = tool::test::capture_test(&mut c, &spec, 20_000.0).unwrap_err().to_string();
+    assert!(e.contains("--duration <="), "{e}");
 }

@@ -10,11 +10,10 @@
 //! - `serve`: accepts one client at a time (sequential connections), reads
 //!   frames with `FrameReader`, answers, and paces the simulation (`Pace`).
 //!
-//! Interim until the core's capture and test signals (branch core-scope)
-//! are merged: the capture buffer is the drive's own (`capture`), sampled
-//! every PWM period, and test signals are refused with that reason.
+//! Capture and test signals are the core's (`Controller::capture_*`,
+//! `start_test`, through `protocol::drive::on_controller` as on the board),
+//! with a capture store of the board's size.
 
-pub mod capture;
 pub mod store;
 
 use crate::config::RigConfig;
@@ -23,10 +22,10 @@ use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, Context, Result};
 use servo_core::controller::ApplyError;
 use servo_core::params::{record, ValidatedParams};
-use servo_core::protocol::drive::{CaptureReply, DriveAccess, DriveStatus};
-use servo_core::protocol::server::{text, Identity, Server};
+use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus};
+use servo_core::protocol::server::{Identity, Server};
 use servo_core::protocol::{
-    self, heapless, CaptureRequest, DriveFrame, Error, Feed, FrameReader, Reply, Request, RequestFrame, TelemetryFrame, TestSignal,
+    self, CaptureRequest, DriveFrame, Error, Feed, FrameReader, Reply, Request, RequestFrame, TelemetryFrame, TestSignal,
     Text, FRAME_MAX,
 };
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
@@ -89,12 +88,11 @@ impl DriveOptions {
 /// `DriveAccess` on the simulated controller, between two steps.
 struct Access<'a> {
     cl: &'a mut ClosedLoop,
-    capture: &'a mut capture::Capture,
 }
 
 impl DriveAccess for Access<'_> {
     fn status(&self) -> DriveStatus {
-        DriveStatus { telemetry: self.cl.controller.telemetry(), test_running: false }
+        DriveStatus { telemetry: self.cl.controller.telemetry(), test_running: self.cl.controller.test_running() }
     }
     fn params(&self) -> ControlParams {
         *self.cl.controller.params()
@@ -106,21 +104,10 @@ impl DriveAccess for Access<'_> {
         self.cl.controller.apply_params(params)
     }
     fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
-        let pwm = self.cl.controller.params().rates.pwm_frequency_hz;
-        let r = match request {
-            CaptureRequest::Configure(cfg) => self.capture.configure(cfg.clone(), pwm).map(|_| CaptureReply::Ok),
-            CaptureRequest::Trigger => self.capture.trigger().map(|_| CaptureReply::Ok),
-            CaptureRequest::Status => Ok(CaptureReply::Status(self.capture.status())),
-            CaptureRequest::Read { signal, start, count } => self.capture.read(*signal, *start, *count).map(|v| CaptureReply::Data {
-                signal: *signal,
-                start: *start,
-                values: heapless::Vec::from_slice(&v).unwrap_or_default(),
-            }),
-        };
-        r.map_err(|e| text(&e))
+        on_controller::capture(&mut self.cl.controller, request)
     }
-    fn test_signal(&mut self, _signal: &TestSignal) -> Result<(), Text> {
-        Err(text("test signals need the core's start_test (core-scope, not merged yet)"))
+    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Text> {
+        on_controller::test_signal(&mut self.cl.controller, signal)
     }
 }
 
@@ -131,7 +118,6 @@ pub struct SimDrive {
     opts: DriveOptions,
     server: Server,
     store: store::FileStore,
-    capture: capture::Capture,
     telemetry_next: u64,
     divider: u64,
     /// A stream is live: fast pacing advances by stream frames only.
@@ -172,6 +158,8 @@ impl SimDrive {
         let controller = servo_core::Controller::try_new(params).map_err(|e| anyhow!("control parameters: {e}"))?;
         let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
         cl.override_pending(servo_core::PwmCommand::OFF);
+        // The board's capture store is a `static`; one per simulated drive.
+        cl.controller.attach_capture_store(Box::leak(Box::new(servo_core::capture::CaptureStore::new())));
         if opts.commissioned {
             cl.controller
                 .command(Command::SetHome { position_m: x0 as f32 })
@@ -191,7 +179,6 @@ impl SimDrive {
             opts,
             server: Server::new(identity, defaults),
             store,
-            capture: capture::Capture::default(),
             telemetry_next: 0,
             divider,
             stream_live: false,
@@ -214,7 +201,6 @@ impl SimDrive {
     /// One PWM period; a telemetry frame if one is due.
     pub fn step(&mut self) -> Option<TelemetryFrame> {
         self.cl.step();
-        self.capture.sample(&self.cl);
         let rate = self.server.telemetry_rate_hz();
         let k = self.cl.periods();
         if rate > 0 && k >= self.telemetry_next && k.is_multiple_of(self.divider) {
@@ -239,7 +225,7 @@ impl SimDrive {
     /// accepted stream point).
     pub fn handle(&mut self, frame: &RequestFrame) -> Option<DriveFrame> {
         let was_on = self.server.telemetry_rate_hz() > 0;
-        let mut access = Access { cl: &mut self.cl, capture: &mut self.capture };
+        let mut access = Access { cl: &mut self.cl };
         let out = self.server.handle(frame, &mut access, &mut self.store);
         match &frame.request {
             Request::Stream(_) if out.is_none() => self.stream_live = true,

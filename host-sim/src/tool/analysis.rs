@@ -117,10 +117,13 @@ pub fn frf_figures(frf: &Frf, from_hz: f64, to_hz: f64) -> FrfFigures {
     let Some(&first) = idx.first() else { return out };
     let g0 = frf.gain_db[first];
     out.bandwidth_3db_hz = idx.iter().find(|&&k| frf.gain_db[k] < g0 - 3.0).map(|&k| frf.freq_hz[k]);
-    // Open loop from closed loop, unity feedback: L = T / (1 − T).
-    let mut prev: Option<(f64, f64, f64)> = None; // (f, |L| dB, ∠L unwrapped)
-    let mut unwrap = 0.0;
-    let mut last_raw: Option<f64> = None;
+    // Open loop from closed loop, unity feedback: L = T / (1 − T). Phases
+    // are taken wrapped to (−360°, 0°] at the crossings (no unwrapping over
+    // the band: where |L| is large its phase is noisy and an unwrap drifts
+    // by whole turns); the phase crossover is where L crosses the negative
+    // real axis.
+    let mut prev: Option<(f64, f64, f64, f64)> = None; // (f, |L| dB, Re L, Im L)
+    let wrap = |deg: f64| -((-deg).rem_euclid(360.0));
     for &k in &idx {
         let (m, p) = (10f64.powf(frf.gain_db[k] / 20.0), frf.phase_deg[k].to_radians());
         let (tr, ti) = (m * p.cos(), m * p.sin());
@@ -128,31 +131,21 @@ pub fn frf_figures(frf: &Frf, from_hz: f64, to_hz: f64) -> FrfFigures {
         let den = dr * dr + di * di;
         let (lr, li) = ((tr * dr + ti * di) / den, (ti * dr - tr * di) / den);
         let ldb = 10.0 * (lr * lr + li * li).log10();
-        let mut lp = li.atan2(lr).to_degrees();
-        if let Some(lr0) = last_raw {
-            let d = lp + unwrap - lr0;
-            if d > 180.0 {
-                unwrap -= 360.0;
-            } else if d < -180.0 {
-                unwrap += 360.0;
-            }
-        }
-        lp += unwrap;
-        last_raw = Some(lp);
         let f = frf.freq_hz[k];
-        if let Some((f0, l0, p0)) = prev {
+        if let Some((f0, l0, r0, i0)) = prev {
             if out.gain_crossover_hz.is_none() && l0 >= 0.0 && ldb < 0.0 {
                 let a = l0 / (l0 - ldb);
                 out.gain_crossover_hz = Some(f0 + a * (f - f0));
-                out.phase_margin_deg = Some(180.0 + p0 + a * (lp - p0));
+                let (xr, xi) = (r0 + a * (lr - r0), i0 + a * (li - i0));
+                out.phase_margin_deg = Some(180.0 + wrap(xi.atan2(xr).to_degrees()));
             }
-            if out.phase_crossover_hz.is_none() && p0 > -180.0 && lp <= -180.0 {
-                let a = (p0 + 180.0) / (p0 - lp);
+            if out.phase_crossover_hz.is_none() && (i0 < 0.0) != (li < 0.0) && r0 < 0.0 && lr < 0.0 {
+                let a = i0 / (i0 - li);
                 out.phase_crossover_hz = Some(f0 + a * (f - f0));
                 out.gain_margin_db = Some(-(l0 + a * (ldb - l0)));
             }
         }
-        prev = Some((f, ldb, lp));
+        prev = Some((f, ldb, lr, li));
     }
     out
 }

@@ -69,7 +69,8 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
         let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len().max(1) as f64).sqrt();
         let max = errs.iter().fold(0.0f64, |m, e| m.max(e.abs()));
         // The capture figure: 4 signals × the buffer at the PWM rate.
-        let samples = drive::capture::SAMPLES_MAX as u16;
+        // As many samples as the board's store holds for 4 signals.
+        let samples = (servo_core::capture::CAPTURE_STORE_CELLS / 4) as u16;
         let tc = Instant::now();
         let cap = super::capture(
             &mut c,
@@ -100,7 +101,7 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
                 "samples": cap.len(),
                 "rate_hz": 1.0 / cap.dt_s,
                 "wall_s": upload_s,
-                "buffer": "interim host-side buffer of the simulated drive (core capture pending)",
+                "store_cells": servo_core::capture::CAPTURE_STORE_CELLS,
             },
         }))
     })();

@@ -436,6 +436,13 @@ impl CaptureData {
     }
 }
 
+fn drive_time(c: &mut Client) -> Result<f64> {
+    match c.ask(Request::Status)? {
+        Reply::Status(s) => Ok(f64::from(s.time_s)),
+        r => bail!("unexpected {r:?}"),
+    }
+}
+
 /// Arms a capture (`Configure`), lets `start` trigger it (a `Test` request,
 /// `CaptureRequest::Trigger`, …), waits for `Done` and uploads it.
 pub fn capture_with(
@@ -446,8 +453,17 @@ pub fn capture_with(
 ) -> Result<CaptureData> {
     let names: Vec<String> = cfg.signals.iter().map(|s| signal_name(*s).to_string()).collect();
     let trigger = cfg.trigger;
+    let pwm = f64::from(c.info.as_ref().map_or(20_000.0, |i| i.pwm_frequency_hz));
+    let pre_s = f64::from(cfg.pre_trigger) * f64::from(cfg.decimation) / pwm;
     c.ask(Request::Capture(CaptureRequest::Configure(cfg)))?;
     if trigger == CaptureTrigger::Command {
+        // Let the pre-trigger history fill (drive time), then trigger.
+        let t0 = drive_time(c)?;
+        let started = Instant::now();
+        while drive_time(c)? < t0 + pre_s + 0.002 && started.elapsed() < wait {
+            c.poll(Duration::from_millis(1))?;
+            c.telemetry.clear();
+        }
         c.ask(Request::Capture(CaptureRequest::Trigger))?;
     }
     start(c)?;

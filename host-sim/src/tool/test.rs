@@ -67,23 +67,41 @@ impl Spec {
         }
     }
 
-    /// Sampling: the current loop at the PWM rate, the others decimated;
-    /// samples to cover 10 % before and the test's duration after.
-    pub fn capture_config(&self, pwm_hz: f64) -> CaptureConfig {
-        let decimation: u16 = match self.target {
+    /// Sampling. A step: 4 signals, the loop's own rate (current: every
+    /// PWM period, speed: every 4th, position: every 20th), decimated more if
+    /// 1.1 × the duration would not fit the drive's capture store
+    /// (`CAPTURE_STORE_CELLS` shared by the signals). A chirp: only reference
+    /// and response (twice the samples), sampled at least 2.5 × its end
+    /// frequency; refused with the longest duration that fits otherwise. A
+    /// tenth of the record lies before the trigger.
+    pub fn capture_config(&self, pwm_hz: f64) -> Result<CaptureConfig> {
+        let base: u16 = match self.target {
             Target::Current => 1,
             Target::Speed => 4,
             Target::Position => 20,
         };
-        let dt = f64::from(decimation) / pwm_hz;
-        let samples = ((1.1 * self.duration_s / dt).ceil() as usize).clamp(64, 8192) as u16;
-        CaptureConfig {
-            signals: heapless::Vec::from_slice(&self.signals()).expect("4 signals"),
+        let signals: &[Signal] = if self.chirp.is_some() { &self.signals()[..2] } else { &self.signals() };
+        let max_samples = (servo_core::capture::CAPTURE_STORE_CELLS / signals.len()) as f64;
+        let periods = 1.1 * self.duration_s * pwm_hz;
+        let mut decimation = base.max((periods / max_samples).ceil().min(f64::from(u16::MAX)) as u16);
+        if let Some((_, to_hz)) = self.chirp {
+            let fastest = ((pwm_hz / (2.5 * to_hz)).floor() as u16).max(1);
+            if decimation > fastest {
+                let longest = max_samples * f64::from(fastest) / pwm_hz / 1.1;
+                bail!(
+                    "a chirp to {to_hz} Hz needs a sample every {fastest} PWM periods; the capture store holds {max_samples} samples of 2 signals, {longest:.3} s at that rate: use --duration <= {longest:.3} or a lower --to"
+                );
+            }
+            decimation = decimation.max(1);
+        }
+        let samples = ((periods / f64::from(decimation)).ceil()).clamp(64.0, max_samples) as u16;
+        Ok(CaptureConfig {
+            signals: heapless::Vec::from_slice(signals).expect("at most 4 signals"),
             decimation,
             samples,
             pre_trigger: samples / 11,
             trigger: CaptureTrigger::TestStart,
-        }
+        })
     }
 }
 
@@ -111,7 +129,7 @@ fn figures(spec: &Spec, cap: &CaptureData) -> (Figures, Option<Frf>) {
 /// Runs the test on a connected drive (which must be able to take it:
 /// enabled, and for current/speed tests the load blocked or braked).
 pub fn capture_test(c: &mut Client, spec: &Spec, pwm_hz: f64) -> Result<CaptureData> {
-    let cfg = spec.capture_config(pwm_hz);
+    let cfg = spec.capture_config(pwm_hz)?;
     let test = spec.signal();
     let wait = Duration::from_secs_f64(10.0 + 20.0 * spec.duration_s);
     capture_with(c, cfg, move |c| c.ask(Request::Test(test)).map(|_| ()), wait)
