@@ -45,6 +45,12 @@ struct Outcome {
     primary_channel: String,
     disturbance_weighted_pct: f64,
     disturbance_primary_pct: f64,
+    /// Weighted over the channels a force acts on (torque, position).
+    disturbance_acting_pct: f64,
+    disturbance_levels: String,
+    /// The most the all-channel weighted figure could reach with torque
+    /// and position explained entirely (the voltage channel stays).
+    disturbance_weighted_ceiling_pct: f64,
     disturbance_change_points: usize,
     character: String,
     character_ok: Option<bool>,
@@ -118,6 +124,9 @@ fn run_case(spec: Spec) -> Outcome {
         primary_channel: s.primary_channel.clone(),
         disturbance_weighted_pct: s.disturbance.as_ref().map_or(0.0, |x| x.weighted_shrink_pct),
         disturbance_primary_pct: s.disturbance.as_ref().map_or(0.0, |x| x.primary_shrink_pct),
+        disturbance_acting_pct: s.disturbance.as_ref().map_or(0.0, |x| x.acting_weighted_shrink_pct),
+        disturbance_levels: s.disturbance.as_ref().map_or(String::new(), |x| x.levels.clone()),
+        disturbance_weighted_ceiling_pct: s.disturbance.as_ref().map_or(0.0, |x| x.weighted_ceiling_pct),
         disturbance_change_points: s.disturbance.as_ref().map_or(0, |x| x.heldout_change_points),
         character_ok: (category == "honestly_unexplained").then(|| chars.is_some_and(|c| c.contains(&character.as_str()))),
         character,
@@ -176,6 +185,10 @@ fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
         "force_disturbance_weighted_shrink_ge_70": force_ok,
         "force_disturbance_weighted_shrink_pct": force.iter().map(|o| o.disturbance_weighted_pct).collect::<Vec<_>>(),
         "force_disturbance_primary_shrink_pct": force.iter().map(|o| o.disturbance_primary_pct).collect::<Vec<_>>(),
+        "force_disturbance_acting_weighted_shrink_pct": force.iter().map(|o| o.disturbance_acting_pct).collect::<Vec<_>>(),
+        "force_disturbance_acting_weighted_shrink_ge_70": force.iter().filter(|o| o.disturbance_acting_pct >= 70.0).count(),
+        "force_disturbance_primary_shrink_ge_70": force.iter().filter(|o| o.disturbance_primary_pct >= 70.0).count(),
+        "force_disturbance_weighted_ceiling_pct": force.iter().map(|o| o.disturbance_weighted_ceiling_pct).collect::<Vec<_>>(),
         "unexplained_cases": unexpl.len(),
         "unexplained_character_named_right_pct": pct(char_ok, unexpl.len()),
         "event_share_cases": ev.len(),
@@ -187,11 +200,11 @@ fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
     });
     let mut rep = String::from("# Open-world suite\n\n");
     let _ = writeln!(rep, "{n} cases, wall {:.1} s. Confusion: named right 0 (the truth is never in the ranked library), disturbance-modelled {}, honestly unexplained {}, wrong {} ({:.1} %).\n", t0.elapsed().as_secs_f64(), count("disturbance_modelled"), count("honestly_unexplained"), count("wrong"), pct(count("wrong"), n));
-    let _ = writeln!(rep, "| case | category | verdict | top (closed-world) | explained % | disturbance weighted / primary % | change points | character (ok?) | event share reported / truth % | gates |\n|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(rep, "| case | category | verdict | top (closed-world) | explained % | disturbance weighted all / torque+position / primary % (levels) | change points | character (ok?) | event share reported / truth % | gates |\n|---|---|---|---|---|---|---|---|---|---|");
     for o in &out {
         let _ = writeln!(
             rep,
-            "| {} | {} | {}{} | {} | {:.1} | {:.1} / {:.1} | {} | {} ({}) | {} | {} |",
+            "| {} | {} | {}{} | {} | {:.1} | {:.1} / {:.1} / {:.1} ({}) | {} | {} ({}) | {} | {} |",
             o.case,
             o.category,
             o.verdict,
@@ -199,7 +212,9 @@ fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
             o.top_effect.as_deref().unwrap_or("none"),
             o.explained_pct,
             o.disturbance_weighted_pct,
+            o.disturbance_acting_pct,
             o.disturbance_primary_pct,
+            o.disturbance_levels,
             o.disturbance_change_points,
             o.character,
             o.character_ok.map_or("–", |b| if b { "yes" } else { "no" }),
