@@ -464,10 +464,16 @@ pub fn fit(
         acting_channels: acting.iter().map(|c| super::residual::CHANNELS[*c].to_string()).collect(),
         acting_weighted_shrink_pct: shrink(super::fit::gap(held, None, &w_act), gap(held, rem_held, Some(&pred), &w_act)),
         levels: mode.name().into(),
-        weighted_ceiling_pct: shrink(
-            gap_nominal_h,
-            gap(held, rem_held, None, &std::array::from_fn(|c| if acting.contains(&c) { 0.0 } else { w[c] })),
-        ),
+        weighted_ceiling_pct: {
+            // The other channels' energy over every channel's samples (as
+            // the weighted figure counts them).
+            let w_other: [f64; NCH] = std::array::from_fn(|c| if acting.contains(&c) { 0.0 } else { w[c] });
+            let count = |wc: &[f64; NCH]| -> usize {
+                held.iter().zip(rem_held).map(|(s, r)| (0..NCH).filter(|c| r[*c].is_some() && wc[*c] != 0.0).count() * s.len()).sum()
+            };
+            let frac = count(&w_other) as f64 / count(w).max(1) as f64;
+            shrink(gap_nominal_h, gap(held, rem_held, None, &w_other) * frac.sqrt())
+        },
         primary_shrink_pct: shrink(gap_nominal_primary_h, gp),
         over_stack_points: shrink(gap_nominal_primary_h, gp) - shrink(gap_nominal_primary_h, gp_stack),
         channels: (0..NCH).filter(|c| use_ch[*c]).map(|c| super::residual::CHANNELS[c].to_string()).collect(),
