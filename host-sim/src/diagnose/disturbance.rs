@@ -16,6 +16,7 @@
 use super::events::{self, Remainder};
 use super::figures::shrink;
 use super::effects::{Effect, MAXP};
+use super::fit::ChannelPred;
 use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE};
 
 /// A channel carries the disturbance only if, on the training part, the
@@ -96,6 +97,10 @@ pub struct DisturbanceFit {
     /// (Zero channels: the levels helped no channel on training.)
     pub remainder_explained_pct: f64,
 }
+
+/// Change points of a segment, each with the weighted residual energy it
+/// explains.
+pub type Steps = Vec<(usize, f64)>;
 
 /// How the levels of an interval act on the channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -192,7 +197,7 @@ fn cv_levels(
     mode: Levels,
     nominal: &Nominal,
     w: &[f64; NCH],
-) -> ([Option<Vec<f64>>; NCH], Vec<(usize, f64)>, Vec<(usize, f64)>) {
+) -> (ChannelPred, Vec<(usize, f64)>, Steps) {
     let n = s.len();
     let b = 2 * (2 * s.sg_m + 1);
     let mut bounds = vec![0];
@@ -241,10 +246,10 @@ fn cv_levels(
                 }
             }
         };
-        for p in 0..2 {
+        for (p, sp) in sig.iter_mut().enumerate() {
             for &c in chans {
                 let l = lv(p, c);
-                sig[p][c][a..e].iter_mut().for_each(|v| *v = l);
+                sp[c][a..e].iter_mut().for_each(|v| *v = l);
             }
         }
         // The interval's level on all its samples, per channel (the
@@ -352,7 +357,7 @@ pub fn predict(
     mode: Levels,
     nominal: &Nominal,
     w: &[f64; NCH],
-) -> (Remainder, Vec<Vec<(usize, f64)>>, Vec<f64>) {
+) -> (Remainder, Vec<Steps>, Vec<f64>) {
     let cps = events::detect_floor(segs, rem, k, [0.0, DETECT_WEIGHT_FLOOR]);
     let chans: Vec<usize> = [TORQUE, POSITION].into_iter().filter(|c| use_ch[*c]).collect();
     let mut levels = Vec::new();
