@@ -6,7 +6,7 @@
 
 use host_sim::diagnose::disturbance;
 use host_sim::diagnose::events::{self, Remainder};
-use host_sim::diagnose::residual::{Nominal, Physics, Segment, NCH, TORQUE};
+use host_sim::diagnose::residual::{Nominal, Physics, Segment, NCH, POSITION, TORQUE};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -153,4 +153,51 @@ fn piecewise_constant_disturbance_is_found_and_noise_is_not_modelled() {
     let g = disturbance::gap(&[&hn], &rhn, None, &w);
     let (dn, _, _) = disturbance::fit(&[&tn], &rtn, &[&hn], &rhn, &nominal, &w, TORQUE, g, g);
     assert!(dn.primary_shrink_pct.abs() < 5.0, "white noise: shrink {:.1} %", dn.primary_shrink_pct);
+}
+
+#[test]
+fn locked_share_weighs_change_points_by_the_energy_they_explain() {
+    let s = seg(vec![0.0; 1000], true);
+    // One logged event at sample 200: ±50 ms covers 101 of 1000 samples.
+    let sig = vec![vec![200]];
+    let cps = vec![vec![(210, 3.0), (700, 1.0)]];
+    let (lk, ch) = events::locked_share(&[&s], &cps, &sig, 0.05);
+    assert!((lk - 75.0).abs() < 1e-9 && (ch - 10.1).abs() < 1e-9, "locked {lk} %, chance {ch} %");
+    // Equal weights: the share of change points.
+    let (lk1, _) = events::locked_share(&[&s], &[vec![(210, 1.0), (700, 1.0)]], &sig, 0.05);
+    assert!((lk1 - 50.0).abs() < 1e-9, "{lk1}");
+}
+
+#[test]
+fn a_force_disturbance_is_carried_to_the_position_channel() {
+    // An unmeasured force of ±300 N steps: the torque channel sees
+    // (L/2π) F, the position channel the drive train's deflection −c F,
+    // each on its floor. The disturbance acts on both and its levels are
+    // the force in N.
+    let n = 8000;
+    let phys = Physics::from_rig(&host_sim::config::RigConfig::nominal().unwrap());
+    let nominal = Nominal::Physics(phys.clone());
+    let c = 1.5e-7;
+    let mk = |shift: usize, seed: u64, held: bool| {
+        let (f, _) = steps(n + shift);
+        let f: Vec<f64> = f[shift..].iter().map(|v| 300.0 * (2.0 * v - 1.0)).collect();
+        let mut s = seg(f.iter().zip(noise(n, 0.02, seed)).map(|(f, e)| phys.k * f + e).collect(), held);
+        s.c_loc = vec![c; n];
+        let p: Vec<f64> = f.iter().zip(noise(n, 1e-6, seed + 100)).map(|(f, e)| -c * f + e).collect();
+        s.y[POSITION] = Some(p.clone());
+        s.r[POSITION] = Some(p);
+        s
+    };
+    let (tr, he) = (mk(0, 11, false), mk(333, 12, true));
+    let (rt, rh) = (rem(&tr), rem(&he));
+    let w = host_sim::diagnose::fit::channel_weights(&[&tr]);
+    let g_h = disturbance::gap(&[&he], &rh, None, &w);
+    let mut wp = [0.0; NCH];
+    wp[TORQUE] = 1.0;
+    let gp = disturbance::gap(&[&he], &rh, None, &wp);
+    let (d, _, _) = disturbance::fit(&[&tr], &rt, &[&he], &rh, &nominal, &w, TORQUE, g_h, gp);
+    assert_eq!(d.channels, ["torque", "position"], "{d:?}");
+    assert_eq!(d.acting_channels, ["torque", "position"]);
+    assert!(d.acting_weighted_shrink_pct >= 80.0, "torque + position: shrink {:.1} %", d.acting_weighted_shrink_pct);
+    assert!((d.max_abs_level - 300.0).abs() < 30.0, "level {} N", d.max_abs_level);
 }

@@ -15,6 +15,8 @@
 
 use super::events::{self, Remainder};
 use super::figures::shrink;
+use super::effects::{Effect, MAXP};
+use super::fit::ChannelPred;
 use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE};
 
 /// A channel carries the disturbance only if, on the training part, the
@@ -27,9 +29,12 @@ pub const CHANNEL_MIN_PCT: f64 = 10.0;
 /// Change points within this of a logged-signal event count as locked to
 /// it, s.
 pub const LOCK_TOL_S: f64 = 0.05;
-/// Change points locked to logged-signal events: at least `LOCKED_RATIO`
-/// times as often near one as chance puts them there, and at least
-/// `LOCKED_EXCESS_POINTS` above chance. The "disturbance" then follows the
+/// Change points locked to logged-signal events: a share of them at least
+/// `LOCKED_RATIO` times what chance puts near one, and at least
+/// `LOCKED_EXCESS_POINTS` above chance — each change point weighted by
+/// the residual energy it explains (`events::locked_share`), so that the
+/// small steps a rod leaves as it stops (the seal's held friction in the
+/// position channel) do not outvote an unmeasured force's large ones. The "disturbance" then follows the
 /// motion or the measured load, so it is a model error of the nominal, not
 /// an unmeasured external force (whose events have their own clock).
 pub const LOCKED_RATIO: f64 = 2.0;
@@ -71,6 +76,21 @@ pub struct DisturbanceFit {
     /// (`figures::WEIGHTED`, `figures::PRIMARY`), and the primary-channel
     /// points it adds over the stack alone.
     pub weighted_shrink_pct: f64,
+    /// The channels an unmeasured axial force acts on, fixed by the
+    /// physics, not by the data: torque and position (a force on the rod
+    /// loads the motor and deflects the drive train; the voltage equation
+    /// holds no force), the logged current with a regression nominal.
+    pub acting_channels: Vec<String>,
+    /// `figures::WEIGHTED_ACTING`: the weighted figure over
+    /// `acting_channels` only, %.
+    pub acting_weighted_shrink_pct: f64,
+    /// The most the weighted figure could reach with the acting channels
+    /// explained entirely (the other channels' held-out gap after the
+    /// stack stays), %.
+    pub weighted_ceiling_pct: f64,
+    /// How the levels act: `per_channel` or `force` (one force through
+    /// the nominal model's torque and compliance), chosen on training.
+    pub levels: String,
     pub primary_shrink_pct: f64,
     pub over_stack_points: f64,
     /// Share of the stack's remainder it explains (weighted), %.
@@ -78,33 +98,229 @@ pub struct DisturbanceFit {
     pub remainder_explained_pct: f64,
 }
 
-/// Cross-validated piecewise-constant prediction of one channel.
-fn cv_levels(s: &Segment, x: &[f64], c: usize, cps: &[usize]) -> (Vec<f64>, Vec<(usize, f64)>) {
-    let b = 2 * (2 * s.sg_m + 1);
-    let mut pred = vec![0.0; x.len()];
-    let mut levels = Vec::new();
-    let mut bounds = vec![0];
-    bounds.extend(cps.iter().copied().filter(|i| *i > 0 && *i < x.len()));
-    bounds.push(x.len());
-    for iv in bounds.windows(2) {
-        let (a, e) = (iv[0], iv[1]);
-        let mut sw = [0.0; 2];
-        let mut swx = [0.0; 2];
-        for (i, xi) in x.iter().enumerate().take(e).skip(a) {
-            let p = ((i - a) / b) % 2;
-            let w2 = s.weight(c, i).powi(2);
-            sw[p] += w2;
-            swx[p] += w2 * xi;
-        }
-        let lv = |p: usize| if sw[p] > 0.0 { swx[p] / sw[p] } else { 0.0 };
-        for (i, pr) in pred.iter_mut().enumerate().take(e).skip(a) {
-            *pr = lv(1 - ((i - a) / b) % 2);
-        }
-        if sw[0] + sw[1] > 0.0 {
-            levels.push((a, (swx[0] + swx[1]) / (sw[0] + sw[1])));
+/// Change points of a segment, each with the weighted residual energy it
+/// explains.
+pub type Steps = Vec<(usize, f64)>;
+
+/// How the levels of an interval act on the channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Levels {
+    /// One level per channel and interval, each channel on its own.
+    PerChannel,
+    /// One force per interval acting through the nominal model on torque
+    /// and position together: the load offset's regressors
+    /// (`k (1 + μ sgn ω sgn F_nut)` on the torque, `−∂δ/∂F` on the
+    /// position: the force winds the drive train up as it loads the
+    /// motor). Physics nominal only.
+    Force,
+}
+
+impl Levels {
+    pub fn name(self) -> &'static str {
+        match self {
+            Levels::PerChannel => "per_channel",
+            Levels::Force => "force",
         }
     }
-    (pred, levels)
+}
+
+/// Change points of the disturbance are found on the torque remainder with
+/// its standstill weights and on the position remainder weighted by
+/// `max(standstill weight, DETECT_WEIGHT_FLOOR)`: the standstill fade
+/// blinds a step detector to a force that comes or goes while the rod
+/// stands still. At rest the position channel still measures the nut
+/// force up to what the seal holds (≈ 45 N, ≈ 6 µm through the drive
+/// train's compliance, against 30–70 µm for 200–500 N), while the torque
+/// channel is then uncertain by the whole friction the nut and seal hold
+/// (drag, efficiency friction μ (L/2π) |F| and seal: up to ≈ 0.2 N·m
+/// against 0.16–0.4 N·m for the same force), so it keeps its fade.
+/// Levels and scores keep the standstill weights on both.
+pub const DETECT_WEIGHT_FLOOR: f64 = 0.5;
+
+/// The channels whose residual is Savitzky–Golay smoothed (the torque
+/// channel: the current is smoothed, the accelerations differentiated
+/// over ±m samples), so a step of the disturbance shows there as the
+/// filter's step response: the prediction is smoothed alike. The position
+/// channel (scale − encoder) is raw.
+fn smoothed(c: usize) -> bool {
+    c == TORQUE
+}
+
+/// Quadratic Savitzky–Golay smoothing (value) over ±m samples, the filter
+/// the torque channel's current goes through; the ends are left as they are.
+fn sg_smooth(y: &[f64], m: usize) -> Vec<f64> {
+    let n = y.len();
+    if m == 0 || n < 2 * m + 1 {
+        return y.to_vec();
+    }
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sq: f64 = (0..=2 * m).map(|j| ((j as f64 - mf).powi(2) - s2).powi(2)).sum();
+    let coef: Vec<f64> =
+        (0..=2 * m).map(|j| 1.0 / (2.0 * mf + 1.0) - ((j as f64 - mf).powi(2) - s2) * s2 / sq).collect();
+    let mut out = y.to_vec();
+    for (i, o) in out.iter_mut().enumerate().take(n - m).skip(m) {
+        *o = coef.iter().zip(&y[i - m..=i + m]).map(|(a, b)| a * b).sum();
+    }
+    out
+}
+
+/// Per-sample gain of the levels on channel `c` (1 per channel, or the
+/// force's regressor).
+fn gain(mode: Levels, s: &Segment, i: usize, c: usize, nominal: &Nominal) -> f64 {
+    match mode {
+        Levels::PerChannel => 1.0,
+        Levels::Force => {
+            let mut buf = [[0.0; NCH]; MAXP];
+            Effect::LoadOffset.regressors(0.0, s, i, nominal, &mut buf);
+            buf[0][c]
+        }
+    }
+}
+
+/// Cross-validated piecewise-constant prediction of the channels `chans`
+/// of one segment. Every interval between change points is cut into
+/// blocks of twice the smoothing window of alternating parity; the levels
+/// of parity p (per channel, or one force for all channels) are fitted on
+/// parity-p samples only and form a signal over the whole segment, which
+/// predicts the samples of the other parity (smoothed where the channel's
+/// residual is smoothed). Returns the prediction per channel, the levels
+/// (interval start, level on all samples: N for `Force`, the torque
+/// channel's unit for `PerChannel`) and every change point with the
+/// weighted residual energy it explains.
+#[allow(clippy::too_many_arguments)]
+fn cv_levels(
+    s: &Segment,
+    r: &[Option<Vec<f64>>; NCH],
+    chans: &[usize],
+    cps: &[usize],
+    mode: Levels,
+    nominal: &Nominal,
+    w: &[f64; NCH],
+) -> (ChannelPred, Vec<(usize, f64)>, Steps) {
+    let n = s.len();
+    let b = 2 * (2 * s.sg_m + 1);
+    let mut bounds = vec![0];
+    bounds.extend(cps.iter().copied().filter(|i| *i > 0 && *i < n));
+    bounds.push(n);
+    let parity = |a: usize, i: usize| ((i - a) / b) % 2;
+    // Gains once per sample and channel.
+    let g: Vec<Vec<f64>> = (0..NCH)
+        .map(|c| if chans.contains(&c) { (0..n).map(|i| gain(mode, s, i, c, nominal)).collect() } else { Vec::new() })
+        .collect();
+    // Level signals per parity: per channel (PerChannel) or one force
+    // (stored under every channel).
+    let mut sig = [[vec![0.0; n], vec![0.0; n], vec![0.0; n]], [vec![0.0; n], vec![0.0; n], vec![0.0; n]]];
+    let mut levels = Vec::new();
+    let mut steps = Vec::new();
+    let mut last: Option<[(f64, f64); NCH]> = None;
+    for iv in bounds.windows(2) {
+        let (a, e) = (iv[0], iv[1]);
+        // Normal equations per parity and per channel (summed for Force).
+        let mut num = [[0.0; NCH]; 2];
+        let mut den = [[0.0; NCH]; 2];
+        for &c in chans {
+            let Some(x) = &r[c] else { continue };
+            let wc = if mode == Levels::Force { w[c] } else { 1.0 };
+            for i in a..e {
+                let p = parity(a, i);
+                let ww = (wc * s.weight(c, i)).powi(2);
+                num[p][c] += ww * g[c][i] * x[i];
+                den[p][c] += ww * g[c][i] * g[c][i];
+            }
+        }
+        let lv = |p: usize, c: usize| match mode {
+            Levels::PerChannel => {
+                if den[p][c] > 0.0 {
+                    num[p][c] / den[p][c]
+                } else {
+                    0.0
+                }
+            }
+            Levels::Force => {
+                let (nu, de): (f64, f64) = (num[p].iter().sum(), den[p].iter().sum());
+                if de > 0.0 {
+                    nu / de
+                } else {
+                    0.0
+                }
+            }
+        };
+        for (p, sp) in sig.iter_mut().enumerate() {
+            for &c in chans {
+                let l = lv(p, c);
+                sp[c][a..e].iter_mut().for_each(|v| *v = l);
+            }
+        }
+        // The interval's level on all its samples, per channel (the
+        // data behind it: its weighted Σ g²), for the reported levels and
+        // the change points' weight.
+        let whole: [(f64, f64); NCH] = std::array::from_fn(|c| {
+            let (nu, de) = match mode {
+                Levels::PerChannel => (num[0][c] + num[1][c], den[0][c] + den[1][c]),
+                Levels::Force => (num[0].iter().chain(&num[1]).sum(), den[0].iter().chain(&den[1]).sum()),
+            };
+            (if de > 0.0 { nu / de } else { 0.0 }, de)
+        });
+        if let Some(prev) = last.filter(|_| a > 0) {
+            // Between-interval sum of squares: how much weighted residual
+            // energy this change point explains (splitting the two
+            // intervals against one level over both).
+            let e: f64 = match mode {
+                Levels::PerChannel => chans
+                    .iter()
+                    .map(|&c| {
+                        let ((la, da), (lb, db)) = (prev[c], whole[c]);
+                        if da + db > 0.0 {
+                            w[c] * w[c] * da * db / (da + db) * (la - lb).powi(2)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .sum(),
+                Levels::Force => chans.first().map_or(0.0, |&c| {
+                    let ((la, da), (lb, db)) = (prev[c], whole[c]);
+                    if da + db > 0.0 {
+                        da * db / (da + db) * (la - lb).powi(2)
+                    } else {
+                        0.0
+                    }
+                }),
+            };
+            steps.push((a, e));
+        }
+        last = Some(whole);
+        let lc = match mode {
+            Levels::Force => chans.first().copied(),
+            Levels::PerChannel => chans.contains(&TORQUE).then_some(TORQUE),
+        };
+        if let Some(c) = lc.filter(|c| whole[*c].1 > 0.0) {
+            levels.push((a, whole[c].0));
+        }
+    }
+    let pred = std::array::from_fn(|c| {
+        let x = r[c].as_ref()?;
+        if !chans.contains(&c) {
+            return Some(vec![0.0; x.len()]);
+        }
+        let sm: [Vec<f64>; 2] = std::array::from_fn(|p| {
+            let v: Vec<f64> = (0..n).map(|i| g[c][i] * sig[p][c][i]).collect();
+            if smoothed(c) {
+                sg_smooth(&v, s.sg_m)
+            } else {
+                v
+            }
+        });
+        // Which interval (and so which parity origin) each sample is in.
+        let mut out = vec![0.0; n];
+        for iv in bounds.windows(2) {
+            for (i, o) in out.iter_mut().enumerate().take(iv[1]).skip(iv[0]) {
+                *o = sm[1 - parity(iv[0], i)][i];
+            }
+        }
+        Some(out)
+    });
+    (pred, levels, steps)
 }
 
 /// Weighted gap (as `fit::gap`) of a remainder minus an optional prediction.
@@ -130,30 +346,35 @@ pub fn gap(segs: &[&Segment], rem: &Remainder, pred: Option<&Remainder>, w: &[f6
     }
 }
 
-/// The cross-validated piecewise-constant prediction of every torque and
-/// position channel, with the change points and the torque levels.
-pub fn predict(segs: &[&Segment], rem: &Remainder, k: f64, use_ch: &[bool; NCH]) -> (Remainder, Vec<Vec<usize>>, Vec<f64>) {
-    let cps = events::detect(segs, rem, k);
+/// The cross-validated piecewise-constant prediction of the torque and
+/// position channels in `use_ch`, with the change points (each with the
+/// weighted energy it explains) and the levels.
+pub fn predict(
+    segs: &[&Segment],
+    rem: &Remainder,
+    k: f64,
+    use_ch: &[bool; NCH],
+    mode: Levels,
+    nominal: &Nominal,
+    w: &[f64; NCH],
+) -> (Remainder, Vec<Steps>, Vec<f64>) {
+    let cps = events::detect_floor(segs, rem, k, [0.0, DETECT_WEIGHT_FLOOR]);
+    let chans: Vec<usize> = [TORQUE, POSITION].into_iter().filter(|c| use_ch[*c]).collect();
     let mut levels = Vec::new();
+    let mut steps = Vec::new();
     let pred = segs
         .iter()
         .zip(rem)
         .zip(&cps)
         .map(|((s, r), cp)| {
-            std::array::from_fn(|c| {
-                let x = r[c].as_ref()?;
-                if (c != TORQUE && c != POSITION) || !use_ch[c] {
-                    return Some(vec![0.0; x.len()]);
-                }
-                let (p, lv) = cv_levels(s, x, c, cp);
-                if c == TORQUE {
-                    levels.extend(lv.iter().map(|l| l.1));
-                }
-                Some(p)
-            })
+            let (p, lv, st) = cv_levels(s, r, &chans, cp, mode, nominal, w);
+            levels.extend(lv.iter().map(|l| l.1));
+            // Change points with no channel in use still count (zero weight).
+            steps.push(if chans.is_empty() { cp.iter().map(|i| (*i, 0.0)).collect() } else { st });
+            p
         })
         .collect();
-    (pred, cps, levels)
+    (pred, steps, levels)
 }
 
 /// Fits the disturbance on the training remainder and scores it on the
@@ -179,34 +400,50 @@ pub fn fit(
         wc[c] = 1.0;
         wc
     };
-    // Threshold and channels on training: per threshold, the channels the
-    // levels help; the threshold whose (channel-gated) gap is least.
-    let (k, use_ch, train_gap) = THRESHOLDS
+    // Level model, threshold and channels on training: per model and
+    // threshold, the channels the levels help; the combination whose
+    // (channel-gated) cross-validated gap is least.
+    let modes: &[Levels] = match nominal {
+        Nominal::Physics(_) => &[Levels::PerChannel, Levels::Force],
+        Nominal::Regression(_) => &[Levels::PerChannel],
+    };
+    let (mode, k, use_ch, train_gap) = modes
         .iter()
-        .map(|k| {
-            let p = predict(train, rem_train, *k, &all_ch).0;
+        .flat_map(|m| THRESHOLDS.iter().map(move |k| (*m, *k)))
+        .map(|(m, k)| {
+            let p = predict(train, rem_train, k, &all_ch, m, nominal, w).0;
             let use_ch: [bool; NCH] = std::array::from_fn(|c| {
                 shrink(gap(train, rem_train, None, &one(c)), gap(train, rem_train, Some(&p), &one(c))) >= CHANNEL_MIN_PCT
             });
-            let g = gap(train, rem_train, Some(&predict(train, rem_train, *k, &use_ch).0), w);
-            (*k, use_ch, g)
+            let g = gap(train, rem_train, Some(&predict(train, rem_train, k, &use_ch, m, nominal, w).0), w);
+            (m, k, use_ch, g)
         })
-        .min_by(|a, b| a.2.total_cmp(&b.2))
-        .unwrap_or((events::STEP_SIGMA, [false; NCH], base_t));
-    let (pred, cps, levels) = predict(held, rem_held, k, &use_ch);
-    let (lk, ch) = events::locked_share(held, &cps, &events::signal_events(held), LOCK_TOL_S);
+        .min_by(|a, b| a.3.total_cmp(&b.3))
+        .unwrap_or((Levels::PerChannel, events::STEP_SIGMA, [false; NCH], base_t));
+    let (pred, steps, levels) = predict(held, rem_held, k, &use_ch, mode, nominal, w);
+    let cps: Vec<Vec<usize>> = steps.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
+    let (lk, ch) = events::locked_share(held, &steps, &events::signal_events(held), LOCK_TOL_S);
     let g_stack = gap(held, rem_held, None, w);
     let g = gap(held, rem_held, Some(&pred), w);
     let wp = one(primary);
     let gp = gap(held, rem_held, Some(&pred), &wp);
     let gp_stack = gap(held, rem_held, None, &wp);
-    let (scale, unit) = match nominal {
-        Nominal::Physics(p) => (1.0 / p.k, "N (force at the nut, from the torque channel)"),
-        Nominal::Regression(_) => (1.0, "A (logged current: an input disturbance)"),
+    let (scale, unit) = match (nominal, mode) {
+        (Nominal::Physics(_), Levels::Force) => (1.0, "N (force at the nut, from the torque and position channels)"),
+        (Nominal::Physics(p), _) => (1.0 / p.k, "N (force at the nut, from the torque channel)"),
+        (Nominal::Regression(_), _) => (1.0, "A (logged current: an input disturbance)"),
     };
     let mut abs: Vec<f64> = levels.iter().map(|l| (l * scale).abs()).collect();
     abs.sort_by(f64::total_cmp);
     let n_cp: usize = cps.iter().map(Vec::len).sum();
+    let acting: Vec<usize> = match nominal {
+        Nominal::Physics(_) => vec![TORQUE, POSITION],
+        Nominal::Regression(_) => vec![TORQUE],
+    }
+    .into_iter()
+    .filter(|c| w[*c] > 0.0)
+    .collect();
+    let w_act: [f64; NCH] = std::array::from_fn(|c| if acting.contains(&c) { w[c] } else { 0.0 });
     let dur: f64 = held.iter().map(|s| s.len() as f64 * s.dt).sum();
     let fitd = DisturbanceFit {
         model: "unmeasured force (input disturbance) piecewise constant between change points of the residual".into(),
@@ -229,6 +466,19 @@ pub fn fit(
         median_abs_level: abs.get(abs.len() / 2).copied().unwrap_or(0.0),
         max_abs_level: abs.last().copied().unwrap_or(0.0),
         weighted_shrink_pct: shrink(gap_nominal_h, g),
+        acting_channels: acting.iter().map(|c| super::residual::CHANNELS[*c].to_string()).collect(),
+        acting_weighted_shrink_pct: shrink(super::fit::gap(held, None, &w_act), gap(held, rem_held, Some(&pred), &w_act)),
+        levels: mode.name().into(),
+        weighted_ceiling_pct: {
+            // The other channels' energy over every channel's samples (as
+            // the weighted figure counts them).
+            let w_other: [f64; NCH] = std::array::from_fn(|c| if acting.contains(&c) { 0.0 } else { w[c] });
+            let count = |wc: &[f64; NCH]| -> usize {
+                held.iter().zip(rem_held).map(|(s, r)| (0..NCH).filter(|c| r[*c].is_some() && wc[*c] != 0.0).count() * s.len()).sum()
+            };
+            let frac = count(&w_other) as f64 / count(w).max(1) as f64;
+            shrink(gap_nominal_h, gap(held, rem_held, None, &w_other) * frac.sqrt())
+        },
         primary_shrink_pct: shrink(gap_nominal_primary_h, gp),
         over_stack_points: shrink(gap_nominal_primary_h, gp) - shrink(gap_nominal_primary_h, gp_stack),
         channels: (0..NCH).filter(|c| use_ch[*c]).map(|c| super::residual::CHANNELS[c].to_string()).collect(),

@@ -166,13 +166,25 @@ pub fn weights(s: &Segment, c: usize) -> Vec<f64> {
 /// channels (the ones an unmeasured force acts on), sigma per channel over
 /// all segments.
 pub fn detect(segs: &[&Segment], rem: &Remainder, k: f64) -> Vec<Vec<usize>> {
+    detect_floor(segs, rem, k, [0.0; 2])
+}
+
+/// `detect` on the remainder weighted by `max(weight, floor[c])` (torque,
+/// position).
+pub fn detect_floor(segs: &[&Segment], rem: &Remainder, k: f64, floor: [f64; 2]) -> Vec<Vec<usize>> {
     let chans: Vec<usize> = (0..2).filter(|c| rem.iter().any(|r| r[*c].is_some())).collect();
     let stats: Vec<Vec<Vec<f64>>> = segs
         .iter()
         .zip(rem)
         .map(|(s, r)| {
             let w = ((STEP_WINDOW_S / s.dt).round() as usize).max(3);
-            chans.iter().map(|&c| r[c].as_ref().map_or(vec![0.0; s.len()], |x| step_stat(x, &weights(s, c), w))).collect()
+            chans
+                .iter()
+                .map(|&c| {
+                    let wt: Vec<f64> = weights(s, c).into_iter().map(|v| v.max(floor[c])).collect();
+                    r[c].as_ref().map_or(vec![0.0; s.len()], |x| step_stat(x, &wt, w))
+                })
+                .collect()
         })
         .collect();
     let sig: Vec<f64> = chans
@@ -212,8 +224,12 @@ pub fn signal_events(segs: &[&Segment]) -> Vec<Vec<usize>> {
 
 /// Share of the change points within `tol_s` of a logged-signal event, %,
 /// and the share expected by chance (the time those windows cover), %.
-pub fn locked_share(segs: &[&Segment], cps: &[Vec<usize>], sig: &[Vec<usize>], tol_s: f64) -> (f64, f64) {
-    let (mut near, mut n, mut covered, mut total) = (0usize, 0usize, 0usize, 0usize);
+/// Each change point counts with its weight (`(sample, weight)`: the
+/// residual energy it explains), so a few large steps of an unmeasured
+/// force are not outvoted by many small ones at the stops; with equal
+/// weights it is the share of change points.
+pub fn locked_share(segs: &[&Segment], cps: &[Vec<(usize, f64)>], sig: &[Vec<usize>], tol_s: f64) -> (f64, f64) {
+    let (mut near, mut n, mut covered, mut total) = (0.0, 0.0, 0usize, 0usize);
     for ((s, cp), ev) in segs.iter().zip(cps).zip(sig) {
         let tol = (tol_s / s.dt).round() as usize;
         let mut mask = vec![false; s.len()];
@@ -224,11 +240,11 @@ pub fn locked_share(segs: &[&Segment], cps: &[Vec<usize>], sig: &[Vec<usize>], t
         }
         covered += mask.iter().filter(|m| **m).count();
         total += s.len();
-        near += cp.iter().filter(|i| mask[**i]).count();
-        n += cp.len();
+        near += cp.iter().filter(|(i, _)| mask[*i]).map(|(_, w)| w).sum::<f64>();
+        n += cp.iter().map(|(_, w)| w).sum::<f64>();
     }
-    let pct = |a: usize, b: usize| if b > 0 { 100.0 * a as f64 / b as f64 } else { 0.0 };
-    (pct(near, n), pct(covered, total))
+    let pct = |a: f64, b: f64| if b > 0.0 { 100.0 * a / b } else { 0.0 };
+    (pct(near, n), pct(covered as f64, total as f64))
 }
 
 /// Move starts and stops: the reference speed crossing 5 % of its peak.

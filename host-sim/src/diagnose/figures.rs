@@ -12,6 +12,8 @@ use std::collections::BTreeMap;
 pub const PRIMARY: &str = "primary-channel shrink";
 /// Label of the weighted figure.
 pub const WEIGHTED: &str = "weighted shrink";
+/// Label of the weighted figure over the channels an effect acts on.
+pub const WEIGHTED_ACTING: &str = "weighted shrink over the channels it acts on";
 /// Label of the share of the held-out gap that remains.
 pub const REMAINING: &str = "remaining gap";
 
@@ -24,6 +26,10 @@ pub fn definitions(primary_channel: &str) -> BTreeMap<String, String> {
         (
             WEIGHTED.to_string(),
             "held-out shrink of the gap over all channels, each weighted by 1/RMS of its training nominal residual (the ranking score), %".to_string(),
+        ),
+        (
+            WEIGHTED_ACTING.to_string(),
+            "the weighted figure over only the channels the effect's model acts on, fixed by the physics (the disturbance, an axial force: torque and position; the voltage channel, which holds no force, left out), %".to_string(),
         ),
         (
             REMAINING.to_string(),

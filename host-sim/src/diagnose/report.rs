@@ -3,7 +3,7 @@
 //! overlay on the held-out part).
 
 use super::residual::{Segment, CHANNELS};
-use super::figures::{PRIMARY, REMAINING, WEIGHTED};
+use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
 use super::{export, fit, regions, spectrum, Diagnosis};
 use crate::report::plots::{line_chart, Series};
 use anyhow::{anyhow, Result};
@@ -226,8 +226,10 @@ fn markdown(d: &Diagnosis) -> String {
         let _ = writeln!(m, "## Disturbance effect (estimated as a signal)\n");
         let _ = writeln!(
             m,
-            "{}: threshold {:.0} σ chosen on training (cross-validated training shrink {:.1} %); on the held-out part {} change points (mean interval {:.2} s), levels median {:.3e}, max {:.3e} {}. With the stack: {PRIMARY} {:.1} %, {WEIGHTED} {:.1} % ({:+.1} points over the stack; {:.1} % of the stack's remainder). Levels cross-validated over alternate blocks of each interval.\n",
+            "{}: levels `{}` on {:?} and threshold {:.0} σ chosen on training (cross-validated training shrink {:.1} %); on the held-out part {} change points (mean interval {:.2} s), levels median {:.3e}, max {:.3e} {}. With the stack: {PRIMARY} {:.1} %, {WEIGHTED} {:.1} % (at most {:.1} % with {:?} explained entirely), {WEIGHTED_ACTING} ({:?}) {:.1} % ({:+.1} points over the stack; {:.1} % of the stack's remainder). Levels cross-validated over alternate blocks of each interval.\n",
             dz.model,
+            dz.levels,
+            dz.channels,
             dz.threshold_sigma,
             dz.train_cv_shrink_pct,
             dz.heldout_change_points,
@@ -237,6 +239,10 @@ fn markdown(d: &Diagnosis) -> String {
             dz.level_unit,
             dz.primary_shrink_pct,
             dz.weighted_shrink_pct,
+            dz.weighted_ceiling_pct,
+            dz.acting_channels,
+            dz.acting_channels,
+            dz.acting_weighted_shrink_pct,
             dz.over_stack_points,
             dz.remainder_explained_pct
         );

@@ -7,7 +7,7 @@
 
 use super::disturbance::DisturbanceFit;
 use super::events::TimeStructure;
-use super::figures::{PRIMARY, REMAINING, WEIGHTED};
+use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
 use super::gates::Gate;
 use super::summary::RankEntry;
 
@@ -119,12 +119,14 @@ pub fn decide(
         v.explained_by = "library stack + disturbance".into();
         v.remaining_gap_pct = 100.0 - dist_total;
         v.headline = format!(
-            "The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect: {} change points, levels up to {:.3e} {} (median {:.3e}); {PRIMARY} {dist_total:.1} % ({} points over the library stack), {WEIGHTED} {:.1} %; {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+            "The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect: {} change points, levels up to {:.3e} {} (median {:.3e}); {PRIMARY} {dist_total:.1} % ({} points over the library stack), {WEIGHTED_ACTING} ({}) {:.1} %, {WEIGHTED} {:.1} %; {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
             d.heldout_change_points,
             d.max_abs_level,
             d.level_unit.split(' ').next().unwrap_or(""),
             d.median_abs_level,
             d.over_stack_points.round(),
+            d.acting_channels.join(" + "),
+            d.acting_weighted_shrink_pct,
             d.weighted_shrink_pct,
             v.remaining_gap_pct
         );
