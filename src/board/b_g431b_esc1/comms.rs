@@ -21,7 +21,6 @@ use embassy_stm32::can::filter::{Action, FilterType, StandardFilter, StandardFil
 use embassy_stm32::can::frame::FdFrame;
 use embedded_can::{Id, StandardId};
 use embassy_stm32::can::{Can, CanConfigurator, OperatingMode};
-use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::{DMA1_CH1, DMA1_CH2, FDCAN1, FLASH, PA11, PB3, PB4, PB9, USART2};
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
@@ -91,7 +90,11 @@ impl CommsPeripherals {
     /// (normal mode, filters: the setpoint and stop identifiers into FIFO 0),
     /// and opens the parameter store.
     pub fn start(self) -> Comms {
-        Comms { serial: serial(self.usart2, self.usart_rx, self.usart_tx, self.dma_tx, self.dma_rx), can: fdcan(self.fdcan1, self.can_rx, self.can_tx), store: FlashStore { flash: Flash::new_blocking(self.flash) } }
+        Comms {
+            serial: serial(self.usart2, self.usart_rx, self.usart_tx, self.dma_tx, self.dma_rx),
+            can: fdcan(self.fdcan1, self.can_rx, self.can_tx),
+            store: FlashStore { _flash: self.flash },
+        }
     }
 }
 
@@ -201,18 +204,22 @@ const _: () = assert!(HEADER_BYTES + RECORD_MAX <= PAGE_BYTES as usize);
 /// previous record whole. The newest page whose record decodes wins; each
 /// page is erased every other save (10 000 cycles → 20 000 saves).
 ///
-/// Sequential-storage would add wear levelling across many records; one
-/// ≤ 1 KiB record saved by hand does not need it, and this is ≈ 150 lines
-/// of flash code instead of a map store and an async adapter.
+/// Written directly on the flash registers rather than with
+/// sequential-storage over embassy's flash driver: one ≤ 1 KiB record saved
+/// by hand needs no map or wear levelling, and embassy-stm32 0.6's G4 page
+/// erase sets the erase going inside `cortex_m::interrupt::free` (PRIMASK),
+/// which would mask the PWM interrupt from thread mode (the masking check
+/// refuses any `cpsid` outside the panic handler). Nothing here masks.
 ///
 /// Flash erase and programming stall instruction fetch (one bank): the PWM
 /// interrupt, in flash, misses periods for up to one page erase (≈ 22 ms,
 /// 40 ms max). `save` therefore refuses while the bridge is on (MOE set;
 /// the server refuses `Save` outside Disabled/Fault already), raises
 /// `FLASH_STALL` so the interrupt does not report the missed periods as an
-/// overrun, and feeds the watchdog before the erase.
+/// overrun, and feeds the watchdog before and after.
 pub struct FlashStore {
-    flash: Flash<'static, Blocking>,
+    /// Held so embassy never hands the flash to anyone else.
+    _flash: Peri<'static, FLASH>,
 }
 
 #[derive(Clone, Copy)]
@@ -221,14 +228,104 @@ struct PageHeader {
     len: usize,
 }
 
+/// Why a flash operation failed (SR error flags).
+struct FlashError;
+
+const FLASH_BASE: u32 = 0x0800_0000;
+const FLASH_KEY1: u32 = 0x4567_0123;
+const FLASH_KEY2: u32 = 0xCDEF_89AB;
+/// Page erase ≤ 40 ms, double-word program ≤ 0.1 ms: a bound on the
+/// busy-wait far beyond both (≈ 0.2 s at 10 cycles per poll).
+const BUSY_POLLS: u32 = 3_000_000;
+
+fn wait_ready() -> Result<(), FlashError> {
+    let f = pac::FLASH;
+    for _ in 0..BUSY_POLLS {
+        let sr = f.sr().read();
+        if !sr.bsy() {
+            let failed = sr.progerr() || sr.wrperr() || sr.pgaerr() || sr.sizerr() || sr.pgserr() || sr.operr();
+            return if failed { Err(FlashError) } else { Ok(()) };
+        }
+    }
+    Err(FlashError)
+}
+
+/// Runs `op` with the flash unlocked, errors cleared and the data cache
+/// off, then locks it and resets the cache (it may hold the old bytes).
+fn with_unlocked(op: impl FnOnce() -> Result<(), FlashError>) -> Result<(), FlashError> {
+    let f = pac::FLASH;
+    wait_ready()?;
+    if f.cr().read().lock() {
+        f.keyr().write_value(FLASH_KEY1);
+        f.keyr().write_value(FLASH_KEY2);
+    }
+    // Write-1-to-clear: writing back what is set clears it.
+    f.sr().modify(|_| {});
+    let dcen = f.acr().read().dcen();
+    f.acr().modify(|w| w.set_dcen(false));
+    let result = op();
+    f.cr().modify(|w| {
+        w.set_pg(false);
+        w.set_per(false);
+        w.set_lock(true);
+    });
+    f.acr().modify(|w| w.set_dcrst(true));
+    f.acr().modify(|w| {
+        w.set_dcrst(false);
+        w.set_dcen(dcen);
+    });
+    result
+}
+
+fn erase_page(offset: u32) -> Result<(), FlashError> {
+    let f = pac::FLASH;
+    f.cr().modify(|w| {
+        w.set_per(true);
+        w.set_pnb((offset / PAGE_BYTES) as u8);
+    });
+    f.cr().modify(|w| w.set_strt(true));
+    let r = wait_ready();
+    f.cr().modify(|w| w.set_per(false));
+    r
+}
+
+/// Programs `bytes` (padded with 0xFF to double words) at `offset`, which
+/// is double-word aligned.
+fn program(offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
+    let f = pac::FLASH;
+    f.cr().modify(|w| w.set_pg(true));
+    for (i, chunk) in bytes.chunks(WRITE_UNIT).enumerate() {
+        let mut dw = [0xFFu8; WRITE_UNIT];
+        dw[..chunk.len()].copy_from_slice(chunk);
+        let addr = FLASH_BASE + offset + (i * WRITE_UNIT) as u32;
+        // SAFETY: an erased, unlocked flash double word inside the store
+        // (memory.x keeps the image out of it); PG is set, so the two word
+        // writes program it.
+        unsafe {
+            core::ptr::write_volatile(addr as *mut u32, u32::from_le_bytes([dw[0], dw[1], dw[2], dw[3]]));
+            core::ptr::write_volatile((addr + 4) as *mut u32, u32::from_le_bytes([dw[4], dw[5], dw[6], dw[7]]));
+        }
+        wait_ready()?;
+    }
+    f.cr().modify(|w| w.set_pg(false));
+    Ok(())
+}
+
+fn read(offset: u32, buf: &mut [u8]) {
+    for (i, b) in buf.iter_mut().enumerate() {
+        // SAFETY: a byte of the store's pages, inside the chip's flash.
+        *b = unsafe { core::ptr::read_volatile((FLASH_BASE + offset + i as u32) as *const u8) };
+    }
+}
+
 impl FlashStore {
     fn page_offset(page: u32) -> u32 {
         STORE_OFFSET + page * PAGE_BYTES
     }
 
-    fn header(&mut self, page: u32) -> Option<PageHeader> {
+    fn header(&self, page: u32) -> Option<PageHeader> {
         let mut h = [0u8; HEADER_BYTES];
-        self.flash.blocking_read(Self::page_offset(page), &mut h).ok()?;
+        read(Self::page_offset(page), &mut h);
         let word = |i: usize| u32::from_le_bytes([h[i], h[i + 1], h[i + 2], h[i + 3]]);
         let len = word(8);
         if h[..4] != STORE_MAGIC || len != !word(12) || len as usize > RECORD_MAX {
@@ -238,7 +335,7 @@ impl FlashStore {
     }
 
     /// Pages with a header, newest first.
-    fn pages(&mut self) -> [Option<(u32, PageHeader)>; 2] {
+    fn pages(&self) -> [Option<(u32, PageHeader)>; 2] {
         let a = self.header(0).map(|h| (0, h));
         let b = self.header(1).map(|h| (1, h));
         match (a, b) {
@@ -248,38 +345,29 @@ impl FlashStore {
         }
     }
 
-    fn program(&mut self, offset: u32, bytes: &[u8]) -> Result<(), embassy_stm32::flash::Error> {
-        let whole = bytes.len() / WRITE_UNIT * WRITE_UNIT;
-        self.flash.blocking_write(offset, &bytes[..whole])?;
-        let tail = &bytes[whole..];
-        if !tail.is_empty() {
-            let mut last = [0xFFu8; WRITE_UNIT];
-            last[..tail.len()].copy_from_slice(tail);
-            self.flash.blocking_write(offset + whole as u32, &last)?;
-        }
-        Ok(())
-    }
-
-    fn write_page(&mut self, page: u32, seq: u32, record: &[u8]) -> Result<(), embassy_stm32::flash::Error> {
+    fn write_page(&mut self, page: u32, seq: u32, record: &[u8]) -> Result<(), FlashError> {
         let base = Self::page_offset(page);
-        self.flash.blocking_erase(base, base + PAGE_BYTES)?;
-        self.program(base + HEADER_BYTES as u32, record)?;
         let len = record.len() as u32;
         let mut h = [0u8; HEADER_BYTES];
         h[..4].copy_from_slice(&STORE_MAGIC);
         h[4..8].copy_from_slice(&seq.to_le_bytes());
         h[8..12].copy_from_slice(&len.to_le_bytes());
         h[12..].copy_from_slice(&(!len).to_le_bytes());
-        self.program(base, &h)
+        with_unlocked(|| {
+            erase_page(base)?;
+            program(base + HEADER_BYTES as u32, record)?;
+            program(base, &h)
+        })
     }
 
     /// Whether the record written at `page` reads back as `record`.
-    fn verify(&mut self, page: u32, record: &[u8]) -> bool {
+    fn verify(&self, page: u32, record: &[u8]) -> bool {
         let mut chunk = [0u8; 32];
         let base = Self::page_offset(page) + HEADER_BYTES as u32;
         record.chunks(chunk.len()).enumerate().all(|(i, want)| {
             let got = &mut chunk[..want.len()];
-            self.flash.blocking_read(base + (i * 32) as u32, got).is_ok() && got == want
+            read(base + (i * 32) as u32, got);
+            got == want
         })
     }
 }
@@ -305,7 +393,7 @@ impl ParamStore for FlashStore {
         match written {
             Ok(()) if self.verify(page, record) => Ok(()),
             Ok(()) => Err(text("flash: read-back differs from the record written")),
-            Err(_) => Err(text("flash: erase or program failed")),
+            Err(FlashError) => Err(text("flash: erase or program failed")),
         }
     }
 
@@ -316,9 +404,7 @@ impl ParamStore for FlashStore {
             let Some(dst) = buf.get_mut(..h.len) else {
                 return Err(text("stored record larger than the buffer"));
             };
-            if self.flash.blocking_read(Self::page_offset(page) + HEADER_BYTES as u32, dst).is_err() {
-                continue;
-            }
+            read(Self::page_offset(page) + HEADER_BYTES as u32, dst);
             // The newest record that decodes; a torn newer one falls back
             // to the older page.
             if servo_core::params::record::decode(dst).is_ok() {
@@ -330,11 +416,8 @@ impl ParamStore for FlashStore {
         match first {
             Some((page, h)) => {
                 let dst = buf.get_mut(..h.len).unwrap_or(&mut []);
-                let n = dst.len();
-                self.flash
-                    .blocking_read(Self::page_offset(page) + HEADER_BYTES as u32, dst)
-                    .map_err(|_| text("flash: read failed"))?;
-                Ok(n)
+                read(Self::page_offset(page) + HEADER_BYTES as u32, dst);
+                Ok(dst.len())
             }
             None => Ok(0),
         }
