@@ -13,6 +13,17 @@ fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=../memory.x");
 
+    // The commit the image is built from, for the protocol's `Info`.
+    let git_hash = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|| "unknown".to_string());
+    println!("cargo:rustc-env=GIT_HASH={git_hash}");
+
     // A build for a hosted target (e.g. `cargo check --target
     // x86_64-…`) has no use for the Cortex-M linker scripts.
     let target = env::var("TARGET").unwrap_or_default();

@@ -6,8 +6,10 @@
 //!   runs there, on state the interrupt owns;
 //! - this main task (embassy executor, thread mode) brings the board up,
 //!   starts the watchdog, calibrates the current offsets, installs the
-//!   controller, and then only forwards commands (button, and the power-up
-//!   sequence if the user's configuration asks for it) and logs telemetry.
+//!   controller (with the parameters saved in flash, if a valid record
+//!   exists), and then serves the protocol on USART2 (ST-LINK virtual COM
+//!   port) and FDCAN1 (the platform's setpoint stream), forwards the
+//!   button, feeds the watchdog and logs telemetry.
 //!
 //! The two talk only through `board::link` (lock-free). Thread-mode critical
 //! sections (embassy, defmt-rtt) mask by priority and never the PWM
@@ -26,15 +28,20 @@ mod board;
 mod masking;
 
 use board::active as hw;
+use board::drive::{BoardDrive, ParamsCache};
 use board::link::{self, Reply, Request};
 use board::{Calibration, ServoBoard, ISR_STATS};
 use cortex_m_rt::{exception, ExceptionFrame};
 use defmt::{error, info, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
+use embassy_futures::select::{select4, Either4};
 use embassy_stm32::pac;
-use embassy_time::{Duration, Ticker, Timer};
+use embassy_time::{Duration, Instant, Ticker, Timer};
+use hw::comms::{self, FlashStore};
 use panic_probe as _;
+use servo_core::params::{record, ValidatedParams};
+use servo_core::protocol::{self as proto, can, DriveCommand, DriveFrame, FrameReader, ParamStore, RequestFrame, Server, StreamPoint};
 use servo_core::{Command, Controller, Mode};
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
@@ -56,6 +63,16 @@ const OFFSET_CALIBRATION_SAMPLES: u32 = 2048;
 /// Poll period while waiting at start-up (offsets, power-up steps): well
 /// inside the watchdog timeout.
 const STARTUP_POLL: Duration = Duration::from_millis(10);
+/// No CAN setpoint frame for this long: the next one may restart the
+/// sequence count (the platform controller restarted).
+const CAN_SEQ_RESET: Duration = Duration::from_millis(100);
+
+/// Who the drive is, for `Info`.
+const IDENTITY: proto::Identity = proto::Identity {
+    firmware_version: env!("CARGO_PKG_VERSION"),
+    git_hash: env!("GIT_HASH"),
+    board: hw::NAME,
+};
 
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
@@ -90,7 +107,6 @@ async fn run() -> Option<Watchdog> {
         warn!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode; set nSWBOOT0 = 0, nBOOT0 = 1");
     }
 
-    let params = *board::VALID_PARAMS.get();
     let mut board = match board::bring_up(p) {
         Ok(b) => b,
         Err(e) => {
@@ -98,6 +114,24 @@ async fn run() -> Option<Watchdog> {
             return None;
         }
     };
+    let Some(comms) = board.take_comms() else {
+        error!("the transports' peripherals were taken already");
+        return None;
+    };
+    let hw::comms::Comms { serial, can: mut can_bus, mut store } = comms.start();
+    let Ok(serial) = serial else {
+        error!("USART2 configuration refused (baud rate {=u32})", comms::BAUD);
+        return None;
+    };
+    let hw::comms::Serial { tx: mut uart_tx, rx: mut uart_rx } = serial;
+    info!(
+        "USART2 {=u32} Bd (ST-LINK VCP); FDCAN1 {=u32}/{=u32} bit/s, leg slot from control.stream.leg_index",
+        comms::BAUD,
+        comms::CAN_NOMINAL_BPS,
+        comms::CAN_DATA_BPS
+    );
+    let boot_params = load_params(&mut store);
+    let params = *boot_params.get();
     if let Some(irq) = masking::unmasked_interrupt(pac::Interrupt::ADC1_2 as u16) {
         error!("interrupt {=u16} sits at the PWM interrupt's priority: critical sections do not mask it", irq);
     }
@@ -146,8 +180,9 @@ async fn run() -> Option<Watchdog> {
     };
     info!("current offsets (ADC codes) U/V/W = {}", offsets);
 
-    // Validated when the image was built (board::VALID_PARAMS).
-    let mut controller = Controller::from_validated(board::VALID_PARAMS);
+    // The saved set (schema-checked, validated, lowered to the board's
+    // ratings) or the image's, validated when it was built.
+    let mut controller = Controller::from_validated(boot_params);
     if watchdog_reset {
         controller.report_watchdog_reset();
     }
@@ -158,7 +193,7 @@ async fn run() -> Option<Watchdog> {
     // The one switch for moving unasked after power-up or any reset:
     // `control.startup.run_at_power_up` (default false). A latched fault
     // (a watchdog reset among them) refuses it: the drive then waits.
-    if board::VALID_PARAMS.get().startup.run_at_power_up {
+    if params.startup.run_at_power_up {
         match controller.power_up() {
             Ok(_) => warn!("startup.run_at_power_up: the drive starts by itself"),
             Err(e) => warn!("startup.run_at_power_up refused: {}", e),
@@ -173,8 +208,63 @@ async fn run() -> Option<Watchdog> {
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
     let mut tick: u32 = 0;
     let mut button_was = false;
+    let mut server = Server::new(IDENTITY, board::VALID_PARAMS);
+    let mut reader = FrameReader::new();
+    let params_cache = ParamsCache::new(params);
+    let mut rx_bytes = [0u8; 64];
+    let mut next_telemetry: Option<Instant> = None;
+    let mut can_state = CanStream::default();
     loop {
-        ticker.next().await;
+        let telemetry_due = async {
+            match next_telemetry {
+                Some(at) => Timer::at(at).await,
+                None => core::future::pending().await,
+            }
+        };
+        let event = select4(ticker.next(), uart_rx.read(&mut rx_bytes), can_bus.read_fd(), telemetry_due).await;
+        match event {
+            Either4::First(()) => {}
+            Either4::Second(Ok(n)) => {
+                for &byte in rx_bytes.iter().take(n) {
+                    let mut drive = BoardDrive::new(&mut board, &params_cache);
+                    if let Some(reply) = server.receive(&mut reader, byte, &mut drive, &mut store) {
+                        send_frame(&mut uart_tx, &reply).await;
+                    }
+                }
+                next_telemetry = telemetry_schedule(&server, next_telemetry);
+                dog.feed_if_isr_alive();
+                continue;
+            }
+            Either4::Second(Err(e)) => {
+                // Overrun or a line error: the ring restarts on the next read.
+                warn!("USART2 receive: {}", e);
+                reader = FrameReader::new();
+                continue;
+            }
+            Either4::Third(Ok(envelope)) => {
+                let frame = envelope.frame;
+                if let Some(id) = comms::standard_id(&frame) {
+                    let mut drive = BoardDrive::new(&mut board, &params_cache);
+                    can_state.receive(id, frame.data(), params_cache.leg_index(), &mut server, &mut drive, &mut store);
+                }
+                continue;
+            }
+            Either4::Third(Err(e)) => {
+                can_state.bus_errors = can_state.bus_errors.wrapping_add(1);
+                if can_state.bus_errors.is_power_of_two() {
+                    warn!("FDCAN1 bus error {} ({=u32} so far)", e, can_state.bus_errors);
+                }
+                continue;
+            }
+            Either4::Fourth(()) => {
+                let now = next_telemetry.unwrap_or_else(Instant::now);
+                next_telemetry = telemetry_schedule(&server, Some(now));
+                if let Some((t, _)) = board.snapshot().drive() {
+                    send_frame(&mut uart_tx, &DriveFrame::Telemetry(server.telemetry_frame(&t))).await;
+                }
+                continue;
+            }
+        }
         tick = tick.wrapping_add(1);
         dog.feed_if_isr_alive();
 
@@ -213,6 +303,161 @@ async fn run() -> Option<Watchdog> {
                 isr.worst_cycles as f32 * ns_per_cycle / 1000.0,
                 isr.worst_latency_ticks as f32 * 1.0e6 / pwm_timer_hz as f32,
             );
+            let c = &can_state;
+            info!(
+                "can: accepted={=u32} refused={=u32} stale={=u32} bad={=u32} other_legs={=u32} bus_errors={=u32}",
+                c.accepted, c.refused, c.stale, c.bad, c.other_legs, c.bus_errors
+            );
+        }
+    }
+}
+
+/// The parameters to start with: the record saved in flash if it is whole,
+/// of this schema and valid (lowered to the board's ratings, like the
+/// image's), else the image's own; the log says which and why.
+fn load_params(store: &mut FlashStore) -> ValidatedParams {
+    let mut buf = [0u8; record::RECORD_MAX];
+    let n = match store.load(&mut buf) {
+        Ok(0) => {
+            info!("parameters: image defaults (no record in flash)");
+            return board::VALID_PARAMS;
+        }
+        Ok(n) => n,
+        Err(why) => {
+            warn!("parameters: image defaults (flash: {=str})", why.as_str());
+            return board::VALID_PARAMS;
+        }
+    };
+    let saved = match record::decode(buf.get(..n).unwrap_or(&[])) {
+        Ok(p) => p,
+        Err(e) => {
+            warn!("parameters: image defaults (flash record refused: {=str})", e.reason());
+            return board::VALID_PARAMS;
+        }
+    };
+    let (lowered, applied) = hw::apply_board_limits(*saved.get());
+    if applied != hw::BoardLimitsApplied::default() {
+        warn!("saved parameters lowered to the board's ratings: {}", applied);
+    }
+    match ValidatedParams::new(lowered) {
+        Ok(v) => {
+            info!("parameters: loaded from flash ({=usize} bytes, schema checked)", n);
+            v
+        }
+        Err(e) => {
+            warn!("parameters: image defaults (saved set invalid on this board: {=str})", e.field);
+            board::VALID_PARAMS
+        }
+    }
+}
+
+/// When the next telemetry frame is due at the server's configured rate
+/// (from `from`, or now), `None` when telemetry is off.
+fn telemetry_schedule(server: &Server, from: Option<Instant>) -> Option<Instant> {
+    let hz = server.telemetry_rate_hz();
+    if hz == 0 {
+        return None;
+    }
+    let period = Duration::from_hz(u64::from(hz));
+    let now = Instant::now();
+    match from {
+        // Keep the cadence; after a stall, restart from now.
+        Some(at) if at + period > now => Some(at + period),
+        _ => Some(now + period),
+    }
+}
+
+/// Encodes `frame` (COBS, CRC, delimiter) and writes it to USART2 by DMA.
+async fn send_frame(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, frame: &DriveFrame) {
+    let mut buf = [0u8; proto::FRAME_MAX];
+    if let Some(bytes) = proto::encode(frame, &mut buf) {
+        if tx.write(bytes).await.is_err() {
+            warn!("USART2 transmit failed");
+        }
+    }
+}
+
+/// The CAN setpoint stream's receiving side: sequence order and counters.
+#[derive(Default)]
+struct CanStream {
+    last_seq: Option<u16>,
+    last_at: Option<Instant>,
+    accepted: u32,
+    refused: u32,
+    stale: u32,
+    bad: u32,
+    other_legs: u32,
+    bus_errors: u32,
+}
+
+impl CanStream {
+    /// One frame: decoded and checked whole (`protocol::can`), in sequence,
+    /// then this leg's slot goes the way of `Request::Stream` (the server's
+    /// stream checks), a stop frame naming this leg the way of
+    /// `DriveCommand::Stop`.
+    fn receive<D: proto::DriveAccess, S: ParamStore>(
+        &mut self,
+        id: u16,
+        data: &[u8],
+        leg: u32,
+        server: &mut Server,
+        drive: &mut D,
+        store: &mut S,
+    ) {
+        let message = match can::decode(id, data) {
+            Ok(m) => m,
+            Err(e) => {
+                self.bad = self.bad.wrapping_add(1);
+                if self.bad.is_power_of_two() {
+                    warn!("CAN frame 0x{=u16:x} refused: {} ({=u32} so far)", id, e, self.bad);
+                }
+                return;
+            }
+        };
+        let now = Instant::now();
+        let fresh = self.last_at.is_none_or(|t| now - t > CAN_SEQ_RESET);
+        if let (Some(last), false) = (self.last_seq, fresh) {
+            if !can::is_newer(message.seq(), last) {
+                self.stale = self.stale.wrapping_add(1);
+                return;
+            }
+        }
+        self.last_seq = Some(message.seq());
+        self.last_at = Some(now);
+        let request = match message {
+            can::CanMessage::Setpoints { legs, .. } => match can::slot(&legs, leg) {
+                Some(sp) => proto::Request::Stream(StreamPoint {
+                    position_m: sp.position_m,
+                    velocity_m_s: sp.velocity_m_s,
+                    force_n: sp.force_n,
+                }),
+                None => {
+                    self.other_legs = self.other_legs.wrapping_add(1);
+                    return;
+                }
+            },
+            can::CanMessage::Stop { legs, .. } => {
+                if !can::names_leg(legs, leg) {
+                    self.other_legs = self.other_legs.wrapping_add(1);
+                    return;
+                }
+                self.last_seq = None;
+                proto::Request::Command(DriveCommand::Stop)
+            }
+        };
+        let frame = RequestFrame { seq: 0, request };
+        match server.handle(&frame, drive, store) {
+            Some(DriveFrame::Reply { reply: proto::Reply::Error(e), .. }) => {
+                self.refused = self.refused.wrapping_add(1);
+                if self.refused.is_power_of_two() {
+                    let why = match &e {
+                        proto::Error::Stream { reason } => reason.as_str(),
+                        _ => "stop refused",
+                    };
+                    warn!("CAN setpoint refused ({=u32} so far): {=str}", self.refused, why);
+                }
+            }
+            _ => self.accepted = self.accepted.wrapping_add(1),
         }
     }
 }

@@ -21,7 +21,9 @@
 
 use cortex_m::peripheral::DWT;
 use servo_core::mailbox::{Handoff, Slot, SlotReceiver, SlotSender, TripleBuffer, TripleReader, TripleWriter};
-use servo_core::{Command, CommandError, CommandOutcome, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
+use servo_core::controller::ApplyError;
+use servo_core::params::ValidatedParams;
+use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
 
 use super::BoardStatus;
 
@@ -44,6 +46,13 @@ pub enum Request {
     ClearHardwareTrip,
     /// A command for the drive (`Controller::command`).
     Drive(Command),
+    /// Copy the controller's parameters into the parameter-out slot
+    /// (≈ 600 bytes, only in the period that serves this request).
+    ReadParams,
+    /// Apply the set waiting in the parameter-in slot
+    /// (`Controller::apply_params`, between two steps: the whole set or
+    /// nothing).
+    ApplyParams,
 }
 
 /// The interrupt's answer to one [`Request`].
@@ -60,6 +69,10 @@ pub enum Reply {
     Drive(Result<CommandOutcome, CommandError>),
     /// No controller is installed yet: the command went nowhere.
     NoDrive,
+    /// `ReadParams`: the set is in the parameter-out slot.
+    Params,
+    /// `ApplyParams`: the controller's answer.
+    Applied(Result<(), ApplyError>),
 }
 
 /// A request or reply with the caller's sequence number.
@@ -160,6 +173,11 @@ impl Snapshot {
 static REQUESTS: Slot<Envelope<Request>> = Slot::new();
 static REPLIES: Slot<Envelope<Reply>> = Slot::new();
 static SNAPSHOTS: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::INITIAL);
+/// Parameter sets in and out: apart from `REQUESTS` so that a request
+/// (and the interrupt's check for one, every period) stays a few bytes, and
+/// the ≈ 600-byte copy happens only in the period that needs it.
+static PARAMS_IN: Slot<ValidatedParams> = Slot::new();
+static PARAMS_OUT: Slot<ControlParams> = Slot::new();
 /// The controller, moved into the interrupt once.
 static CONTROLLER: Handoff<Controller> = Handoff::new();
 
@@ -168,6 +186,8 @@ pub struct IsrLink {
     requests: SlotReceiver<'static, Envelope<Request>>,
     replies: SlotSender<'static, Envelope<Reply>>,
     snapshots: TripleWriter<'static, Snapshot>,
+    params_in: SlotReceiver<'static, ValidatedParams>,
+    params_out: SlotSender<'static, ControlParams>,
     controller: Option<&'static mut Controller>,
     published_seq: u32,
 }
@@ -177,6 +197,8 @@ pub struct ThreadLink {
     requests: SlotSender<'static, Envelope<Request>>,
     replies: SlotReceiver<'static, Envelope<Reply>>,
     snapshots: TripleReader<'static, Snapshot>,
+    params_in: SlotSender<'static, ValidatedParams>,
+    params_out: SlotReceiver<'static, ControlParams>,
     next_seq: u32,
 }
 
@@ -186,9 +208,19 @@ pub fn split() -> Option<(ThreadLink, IsrLink)> {
     let (req_tx, req_rx) = REQUESTS.split()?;
     let (rep_tx, rep_rx) = REPLIES.split()?;
     let (snap_w, snap_r) = SNAPSHOTS.split()?;
+    let (pin_tx, pin_rx) = PARAMS_IN.split()?;
+    let (pout_tx, pout_rx) = PARAMS_OUT.split()?;
     Some((
-        ThreadLink { requests: req_tx, replies: rep_rx, snapshots: snap_r, next_seq: 0 },
-        IsrLink { requests: req_rx, replies: rep_tx, snapshots: snap_w, controller: None, published_seq: 0 },
+        ThreadLink { requests: req_tx, replies: rep_rx, snapshots: snap_r, params_in: pin_tx, params_out: pout_rx, next_seq: 0 },
+        IsrLink {
+            requests: req_rx,
+            replies: rep_tx,
+            snapshots: snap_w,
+            params_in: pin_rx,
+            params_out: pout_tx,
+            controller: None,
+            published_seq: 0,
+        },
     ))
 }
 
@@ -214,6 +246,30 @@ impl IsrLink {
     #[inline(always)]
     pub fn reply(&mut self, seq: u32, body: Reply) {
         let _ = self.replies.try_put(Envelope { seq, body });
+    }
+
+    /// Serves `ReadParams` / `ApplyParams` (called only for those requests:
+    /// the parameter copies cost nothing in other periods).
+    pub fn serve_params(&mut self, request: Request) -> Reply {
+        if self.controller().is_none() {
+            return Reply::NoDrive;
+        }
+        match request {
+            Request::ReadParams => {
+                let Some(c) = self.controller.as_deref() else { return Reply::NoDrive };
+                // A stale set nobody collected is replaced.
+                let _ = self.params_out.try_withdraw();
+                match self.params_out.try_put(*c.params()) {
+                    Ok(()) => Reply::Params,
+                    Err(_) => Reply::Refused,
+                }
+            }
+            Request::ApplyParams => match (self.params_in.try_take(), self.controller.as_deref_mut()) {
+                (Some(p), Some(c)) => Reply::Applied(c.apply_params(&p)),
+                _ => Reply::Refused,
+            },
+            _ => Reply::Refused,
+        }
     }
 
     /// The controller, once installed (an atomic load per period until then).
@@ -292,6 +348,32 @@ impl ThreadLink {
                 }
                 None => core::hint::spin_loop(),
             }
+        }
+    }
+
+    /// The controller's parameters as it runs them now (`ReadParams`).
+    pub fn read_params(&mut self, timeout_cycles: u32) -> Result<ControlParams, LinkError> {
+        let _ = self.params_out.try_take();
+        match self.call(Request::ReadParams, timeout_cycles)? {
+            Reply::Params => self.params_out.try_take().ok_or(LinkError::NoReply),
+            _ => Err(LinkError::Refused),
+        }
+    }
+
+    /// Hands `params` to the interrupt, which applies them between two
+    /// steps (`ApplyParams`); the controller's answer.
+    pub fn apply_params(&mut self, params: &ValidatedParams, timeout_cycles: u32) -> Result<Result<(), ApplyError>, LinkError> {
+        // A set left by a call that timed out before the interrupt took it.
+        let _ = self.params_in.try_withdraw();
+        if self.params_in.try_put(*params).is_err() {
+            return Err(LinkError::NotTaken);
+        }
+        let result = self.call(Request::ApplyParams, timeout_cycles);
+        // Not taken: take the set back, so it never applies late.
+        let _ = self.params_in.try_withdraw();
+        match result? {
+            Reply::Applied(r) => Ok(r),
+            _ => Err(LinkError::Refused),
         }
     }
 

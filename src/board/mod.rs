@@ -24,9 +24,10 @@
 //! then point `active` below at it. `main.rs` only uses `active::…` and the
 //! items of this module, so nothing else changes.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 pub mod b_g431b_esc1;
+pub mod drive;
 pub mod link;
 pub mod watchdog;
 
@@ -79,6 +80,14 @@ pub trait ServoBoard {
     /// Clears a latched hardware trip (e.g. the overcurrent break) if its
     /// cause is gone. Returns whether the board is clear now.
     fn clear_latched_faults(&mut self) -> bool;
+    /// The controller's parameters as it runs them (through the link).
+    fn read_params(&mut self) -> Result<servo_core::ControlParams, link::LinkError>;
+    /// Applies a whole validated set between two periods (through the
+    /// link); the controller's answer.
+    fn apply_params(
+        &mut self,
+        params: &servo_core::params::ValidatedParams,
+    ) -> Result<Result<(), servo_core::controller::ApplyError>, link::LinkError>;
     fn set_led(&mut self, on: bool);
     /// The user button, debounced by the caller.
     fn button_pressed(&self) -> bool;
@@ -175,3 +184,8 @@ pub struct IsrSnapshot {
 }
 
 pub static ISR_STATS: IsrStats = IsrStats::new();
+
+/// Set by thread mode around a flash erase or write (bridge off): the
+/// interrupt, fetched from flash, stalls and misses periods meanwhile; it
+/// does not report those as an overrun (read only when it saw one).
+pub static FLASH_STALL: AtomicBool = AtomicBool::new(false);

@@ -13,4 +13,7 @@ pub struct StreamParams {
     /// No setpoint for this long ends the stream with a controlled stop
     /// (`stream_timeout`): five periods of the slowest rate.
     pub timeout_s: f32,
+    /// This drive's slot (leg 0…5) in the platform's CAN FD setpoint frame
+    /// (`protocol::can`): each of the six drives on the bus reads its own.
+    pub leg_index: u32,
 }

@@ -322,6 +322,9 @@ impl ControlParams {
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
             return Err(ParamError { field: "control.stream.timeout_s", reason: "must be >= stream.period_max_s" });
         }
+        if self.stream.leg_index >= crate::protocol::can::LEGS as u32 {
+            return Err(ParamError { field: "control.stream.leg_index", reason: "must be 0..=5 (a slot of the CAN setpoint frame)" });
+        }
         Ok(())
     }
 }

@@ -3,6 +3,7 @@
 //!
 //! - `messages`: what may be asked and answered ([`RequestFrame`],
 //!   [`DriveFrame`]);
+//! - `can`: the six legs' setpoint stream over CAN FD (fixed layout);
 //! - `frame`: postcard + CRC-32 + COBS framing, and the byte-stream reader;
 //! - `params`: parameters by dotted path (`control.speed_pi.kp`);
 //! - `drive`: what the server needs of a drive ([`DriveAccess`]) and of a
@@ -14,6 +15,7 @@
 //! flash record). `Info` carries it; a host refuses a drive whose hash
 //! differs from its own, and a flash record carries [`PARAMS_SCHEMA_HASH`].
 
+pub mod can;
 pub mod drive;
 pub mod frame;
 pub mod messages;

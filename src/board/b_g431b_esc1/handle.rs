@@ -35,6 +35,8 @@ pub struct Board {
     pub(super) _brake: Peri<'static, brake::Pin>,
     pub(super) button: Peri<'static, AnyPin>,
     pub(super) link: ThreadLink,
+    /// USART2, FDCAN1 and the flash, set aside for `main` (`take_comms`).
+    pub(super) comms: Option<super::comms::CommsPeripherals>,
     pub(super) cpu_hz: u32,
     pub(super) pwm_timer_hz: u32,
     /// CPU cycles per PWM period.
@@ -45,6 +47,11 @@ impl Board {
     /// PWM timer ticks per second (for converting the latency figure).
     pub fn pwm_timer_hz(&self) -> u32 {
         self.pwm_timer_hz
+    }
+
+    /// The transports' and the store's peripherals, once.
+    pub fn take_comms(&mut self) -> Option<super::comms::CommsPeripherals> {
+        self.comms.take()
     }
 
     /// Core clock, i.e. DWT cycles per second.
@@ -102,6 +109,17 @@ impl ServoBoard for Board {
 
     fn clear_latched_faults(&mut self) -> bool {
         matches!(self.call(Request::ClearHardwareTrip), Ok(Reply::HardwareTrip { cleared: true }))
+    }
+
+    fn read_params(&mut self) -> Result<servo_core::ControlParams, LinkError> {
+        self.link.read_params(self.period_cycles.saturating_mul(CALL_TIMEOUT_PERIODS))
+    }
+
+    fn apply_params(
+        &mut self,
+        params: &servo_core::params::ValidatedParams,
+    ) -> Result<Result<(), servo_core::controller::ApplyError>, LinkError> {
+        self.link.apply_params(params, self.period_cycles.saturating_mul(CALL_TIMEOUT_PERIODS))
     }
 
     fn set_led(&mut self, on: bool) {

@@ -126,6 +126,7 @@ impl IsrState {
                 Some(c) => Reply::Drive(c.command(cmd)),
                 None => Reply::NoDrive,
             },
+            Request::ReadParams | Request::ApplyParams => self.link.serve_params(request),
         }
     }
 
@@ -321,7 +322,9 @@ fn ADC1_2() {
     if adc1.isr().read().jeos() {
         overrun = true;
     }
-    if overrun {
+    // A flash erase or write (thread mode, bridge off) stalls instruction
+    // fetch, so this interrupt misses periods: expected, not an overrun.
+    if overrun && !super::super::FLASH_STALL.load(Ordering::Relaxed) {
         if let Some(c) = s.link.controller() {
             c.report_isr_overrun();
         }

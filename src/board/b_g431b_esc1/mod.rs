@@ -62,6 +62,7 @@ use servo_core::ControlParams;
 
 pub mod brake;
 pub mod cal;
+pub mod comms;
 mod handle;
 mod isr;
 mod setup;
@@ -84,6 +85,9 @@ pub const PWM_IRQ_PRIORITY: Priority = Priority::P0;
 /// (unused here): below the PWM interrupt, inside what a critical section
 /// masks. embassy's default would be 0, level with the PWM interrupt.
 pub const DMA_IRQ_PRIORITY: Priority = Priority::P2;
+/// NVIC priority of the transports' interrupts (USART2, FDCAN1_IT0/IT1):
+/// below the PWM interrupt, masked by a thread-mode critical section.
+pub const COMMS_IRQ_PRIORITY: Priority = Priority::P3;
 /// NVIC priority of the embassy time driver (TIM2). Any level below the PWM
 /// interrupt works; 4 leaves room for a future transport interrupt above it.
 pub const TIME_DRIVER_PRIORITY: Priority = Priority::P4;
@@ -131,8 +135,10 @@ pub fn clock_config() -> embassy_stm32::Config {
     });
     config.rcc.sys = Sysclk::PLL1_R;
     config.rcc.boost = true;
-    // Nothing here uses DMA, but embassy enables its vectors anyway.
+    // USART2's DMA channels (`comms`); embassy enables every DMA vector.
     config.bdma_interrupt_priority = DMA_IRQ_PRIORITY;
+    // FDCAN1 from PCLK1 (170 MHz): exact 1 and 5 Mbit/s (`comms`).
+    config.rcc.mux.fdcansel = embassy_stm32::rcc::mux::Fdcansel::PCLK1;
     config
 }
 

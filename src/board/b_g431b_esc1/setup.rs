@@ -22,7 +22,7 @@ use embassy_stm32::{Peri, Peripherals};
 use super::super::link;
 use super::{
     brake, cal, isr, Board, BoardError, ADC1_CH_I_U, ADC1_CH_I_W, ADC1_CH_NTC, ADC2_CH_I_V, ADC2_CH_VBUS,
-    DEAD_TIME_NS, HW_OVERCURRENT_BREAK, JEXTSEL_TIM1_TRGO2, PWM_IRQ_PRIORITY, TIME_DRIVER_PRIORITY,
+    COMMS_IRQ_PRIORITY, DEAD_TIME_NS, HW_OVERCURRENT_BREAK, JEXTSEL_TIM1_TRGO2, PWM_IRQ_PRIORITY, TIME_DRIVER_PRIORITY,
 };
 
 /// Puts every interrupt this image enables at its level: the PWM interrupt
@@ -33,6 +33,11 @@ use super::{
 pub fn set_interrupt_priorities() {
     interrupt::TIM2.set_priority(TIME_DRIVER_PRIORITY);
     interrupt::ADC1_2.set_priority(PWM_IRQ_PRIORITY);
+    // The transports (`comms`); their drivers enable them without setting
+    // a priority, which would leave them at 0, level with the PWM interrupt.
+    interrupt::USART2.set_priority(COMMS_IRQ_PRIORITY);
+    interrupt::FDCAN1_IT0.set_priority(COMMS_IRQ_PRIORITY);
+    interrupt::FDCAN1_IT1.set_priority(COMMS_IRQ_PRIORITY);
 }
 
 impl Board {
@@ -158,6 +163,17 @@ impl Board {
             _brake: brake_pin,
             button: p.PC10.into(),
             link: thread_link,
+            comms: Some(super::comms::CommsPeripherals {
+                usart2: p.USART2,
+                usart_tx: p.PB3,
+                usart_rx: p.PB4,
+                dma_tx: p.DMA1_CH1,
+                dma_rx: p.DMA1_CH2,
+                fdcan1: p.FDCAN1,
+                can_rx: p.PA11,
+                can_tx: p.PB9,
+                flash: p.FLASH,
+            }),
             cpu_hz: hclk_hz,
             pwm_timer_hz: tim_hz,
             period_cycles,

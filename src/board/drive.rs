@@ -1,0 +1,135 @@
+//! The protocol server's view of the drive on a board
+//! ([`servo_core::protocol::DriveAccess`]), over the lock-free link to the
+//! PWM interrupt (`link`): status from the interrupt's newest snapshot;
+//! commands, parameter reads and whole parameter sets through the request
+//! slot, each answered by the interrupt in the period that takes it
+//! (thread mode spins for the answer, bounded, nothing masked).
+//!
+//! Board-independent: works on any [`ServoBoard`].
+
+use core::cell::{Cell, RefCell};
+
+use servo_core::controller::ApplyError;
+use servo_core::params::ValidatedParams;
+use servo_core::protocol::server::text;
+use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, TestSignal, Text};
+use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Readiness};
+
+use super::link::Reply;
+use super::ServoBoard;
+
+/// `ApplyError` field named when the interrupt did not answer (the link's
+/// only way to say so through `DriveAccess::apply_params`).
+pub const NO_ANSWER_FIELD: &str = "(link: the PWM interrupt did not answer)";
+
+/// Thread mode's copy of the controller's parameters, kept across
+/// requests. Only thread mode changes the set (`apply_params`, which updates
+/// the copy); the core changes it on its own only when a start-up step
+/// completes (commutation measures `encoder.electrical_offset_rad`), which
+/// shows as a change of readiness or mode in the snapshot. So the copy is
+/// read back from the interrupt (`ReadParams`, a ≈ 600-byte copy in one
+/// period) only when readiness or mode moved since it was taken: a stream
+/// of setpoints at 1 kHz costs the interrupt no parameter copy at all.
+pub struct ParamsCache {
+    params: RefCell<ControlParams>,
+    /// Readiness and mode when `params` was read; `None`: read again.
+    stamp: Cell<Option<(Readiness, Mode)>>,
+}
+
+impl ParamsCache {
+    pub fn new(params: ControlParams) -> Self {
+        Self { params: RefCell::new(params), stamp: Cell::new(None) }
+    }
+
+    /// This drive's slot in the CAN setpoint frame (`control.stream.leg_index`).
+    pub fn leg_index(&self) -> u32 {
+        self.params.try_borrow().map_or(0, |p| p.stream.leg_index)
+    }
+
+    fn get(&self) -> ControlParams {
+        self.params.try_borrow().map(|p| *p).unwrap_or(ControlParams::DEFAULT)
+    }
+
+    fn set(&self, params: ControlParams, stamp: Option<(Readiness, Mode)>) {
+        if let Ok(mut p) = self.params.try_borrow_mut() {
+            *p = params;
+            self.stamp.set(stamp);
+        }
+    }
+}
+
+/// The drive as the server sees it, for the duration of one request.
+pub struct BoardDrive<'a, B: ServoBoard> {
+    board: RefCell<&'a mut B>,
+    cache: &'a ParamsCache,
+}
+
+impl<'a, B: ServoBoard> BoardDrive<'a, B> {
+    pub fn new(board: &'a mut B, cache: &'a ParamsCache) -> Self {
+        Self { board: RefCell::new(board), cache }
+    }
+}
+
+impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
+    fn status(&self) -> DriveStatus {
+        let Ok(mut board) = self.board.try_borrow_mut() else {
+            return DriveStatus::default();
+        };
+        match board.snapshot().drive() {
+            // TODO(core-scope): `test_running` from the snapshot once the
+            // core reports a running test signal.
+            Some((telemetry, _moving)) => DriveStatus { telemetry, test_running: false },
+            None => DriveStatus::default(),
+        }
+    }
+
+    fn params(&self) -> ControlParams {
+        if let Ok(mut board) = self.board.try_borrow_mut() {
+            let stamp = board.snapshot().drive().map(|(t, _)| (t.readiness, t.mode));
+            if stamp.is_none() || stamp != self.cache.stamp.get() {
+                if let Ok(p) = board.read_params() {
+                    self.cache.set(p, stamp);
+                }
+            }
+        }
+        self.cache.get()
+    }
+
+    fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
+        match self.board.get_mut().call(super::link::Request::Drive(cmd)) {
+            Ok(Reply::Drive(r)) => r,
+            // No controller yet: it is installed once the current offsets
+            // are measured.
+            Ok(Reply::NoDrive) => Err(CommandError::NotCalibrated),
+            // The interrupt did not answer in time (or answered something
+            // else): the command did not act, or its outcome is unknown.
+            _ => Err(CommandError::Busy),
+        }
+    }
+
+    fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
+        match self.board.get_mut().apply_params(params) {
+            Ok(r) => {
+                if r.is_ok() {
+                    let stamp = self.cache.stamp.get();
+                    self.cache.set(*params.get(), stamp);
+                }
+                r
+            }
+            Err(_) => Err(ApplyError::NeedsBridgeOff { field: NO_ANSWER_FIELD }),
+        }
+    }
+
+    fn capture(&mut self, _request: &CaptureRequest) -> Result<CaptureReply, Text> {
+        // TODO(core-scope): pass the request through the link to the
+        // interrupt, which calls `Controller::capture_configure` /
+        // `capture_trigger` / `capture_status` / `capture_read` (branch
+        // core-scope) and answers within the period.
+        Err(text("capture: not in this image yet (needs Controller::capture_*, branch core-scope)"))
+    }
+
+    fn test_signal(&mut self, _signal: &TestSignal) -> Result<(), Text> {
+        // TODO(core-scope): through the link, `Controller::start_test`.
+        Err(text("test signals: not in this image yet (needs Controller::start_test, branch core-scope)"))
+    }
+}
