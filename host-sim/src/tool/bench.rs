@@ -1,7 +1,8 @@
 //! `drive bench-stream`: the paper run's motor-side reference, streamed at
 //! 1 kHz through a simulated drive over TCP (fast pacing: exactly 1 ms of
 //! simulated time per frame), and the tracking it achieves; plus the
-//! capture figure (signals × samples at the PWM rate).
+//! capture figure (signals × samples at the PWM rate); and a speed-loop
+//! gain changed mid-move through the protocol (`bench_gain`).
 
 use super::client::{Client, Endpoint};
 use super::stream::{self, Row};
@@ -107,7 +108,8 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     })();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     let _ = h.join();
-    let s = result?;
+    let mut s = result?;
+    s["gain_change_mid_move"] = super::bench_gain::run(rig)?;
     std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&s)?)?;
     Ok(s)
 }

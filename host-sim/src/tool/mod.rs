@@ -4,6 +4,7 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod bench_gain;
 pub mod client;
 pub mod params;
 pub mod stream;
