@@ -72,6 +72,10 @@ enum Cmd {
     /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
+    /// Tuning from identification (issue 11 items 7-8): identify inertia,
+    /// friction, R and L from captures; propose gains for asked bandwidths
+    /// and phase margin; check them on the simulator. docs/tuning.md.
+    Tune(host_sim::tuning::cli::TuneArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
@@ -119,6 +123,7 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
+        Cmd::Tune(args) => host_sim::tuning::cli::run(args),
         Cmd::Platform { out, geometry, params } => {
             let g = match geometry {
                 Some(path) => host_sim::platform::Geometry::load(&path)?,
