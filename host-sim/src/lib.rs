@@ -17,3 +17,4 @@ pub mod scenario;
 pub mod sim;
 pub mod tool;
 pub mod trainer;
+pub mod tuning;

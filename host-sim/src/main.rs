@@ -76,6 +76,10 @@ enum Cmd {
     /// a TCP socket; the other subcommands are the host tool, talking to a
     /// board (--port) or a simulated drive (--tcp). docs/host-tool.md.
     Drive(host_sim::tool::DriveArgs),
+    /// Tuning from identification (issue 11 items 7-8): identify inertia,
+    /// friction, R and L from captures; propose gains for asked bandwidths
+    /// and phase margin; check them on the simulator. docs/tuning.md.
+    Tune(host_sim::tuning::cli::TuneArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
@@ -124,6 +128,7 @@ fn main() -> Result<()> {
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
+        Cmd::Tune(args) => host_sim::tuning::cli::run(args),
         Cmd::Platform { out, geometry, params } => {
             let g = match geometry {
                 Some(path) => host_sim::platform::Geometry::load(&path)?,

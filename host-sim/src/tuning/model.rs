@@ -1,0 +1,147 @@
+//! The design model in the time domain: the three loops as the core runs
+//! them (the current PI every PWM period on the winding, its voltage acting
+//! one period later; the speed PI + torque filter every speed period; the
+//! position P every position period; the encoder PLL), on the rigid (or
+//! two-mass) mechanics, no friction, no load. Gives the step responses the
+//! design predicts.
+
+use super::design::DesignPlant;
+use std::f64::consts::{FRAC_1_SQRT_2, PI, TAU};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum StepKind {
+    Current,
+    Speed,
+    Position,
+}
+
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Gains {
+    pub current: (f64, f64),
+    pub speed: (f64, f64),
+    pub position_kp: f64,
+}
+
+struct Biquad {
+    b0: f64,
+    a1: f64,
+    a2: f64,
+    z1: f64,
+    z2: f64,
+    pass: bool,
+}
+
+impl Biquad {
+    fn new(f: f64, rate: f64) -> Self {
+        if !(f > 0.0 && f < 0.45 * rate) {
+            return Biquad { b0: 1.0, a1: 0.0, a2: 0.0, z1: 0.0, z2: 0.0, pass: true };
+        }
+        let k = (PI * f / rate).tan();
+        let q = FRAC_1_SQRT_2;
+        let norm = 1.0 / (1.0 + k / q + k * k);
+        Biquad { b0: k * k * norm, a1: 2.0 * (k * k - 1.0) * norm, a2: (1.0 - k / q + k * k) * norm, z1: 0.0, z2: 0.0, pass: false }
+    }
+    fn update(&mut self, x: f64) -> f64 {
+        if self.pass {
+            return x;
+        }
+        let y = self.b0 * x + self.z1;
+        self.z1 = 2.0 * self.b0 * x - self.a1 * y + self.z2;
+        self.z2 = self.b0 * x - self.a2 * y;
+        y
+    }
+}
+
+/// Response to a step of `amplitude` (A, rad/s or rad at the motor) at
+/// t = 0, sampled every PWM period for `duration_s`: the measured signal
+/// (q current, PLL speed, or motor angle).
+pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64, duration_s: f64) -> Vec<f64> {
+    let t = p.t_pwm();
+    let n = (duration_s / t).round() as usize;
+    let a = (-p.r_ohm * t / p.l_h).exp();
+    let b = (1.0 - a) / p.r_ohm;
+    let (sd, pd) = (p.speed_div.round() as usize, p.position_div.round() as usize);
+    let ts = p.t_speed();
+    // Two-mass split (rigid when no mode is given).
+    let (jm, jl, kax, cax) = match &p.rod_mode {
+        Some(m) => {
+            let (wa, wr) = (TAU * m.antiresonance_hz, TAU * m.resonance_hz);
+            let jm = p.inertia_kg_m2 * wa * wa / (wr * wr);
+            let jl = p.inertia_kg_m2 - jm;
+            let k = jl * wa * wa;
+            (jm, jl, k, 2.0 * m.zeta_a * (k * jl).sqrt())
+        }
+        None => (p.inertia_kg_m2, 0.0, 0.0, 0.0),
+    };
+    let (mut i, mut th, mut w, mut thl, mut wl) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (mut th_est, mut w_est) = (0.0f64, 0.0f64);
+    let (mut int_i, mut int_w) = (0.0f64, 0.0f64);
+    let mut u_prev = 0.0;
+    let mut w_ref = 0.0;
+    let mut i_ref = 0.0;
+    let mut tf = Biquad::new(p.torque_filter_hz, 1.0 / ts);
+    let mut out = Vec::with_capacity(n);
+    let sub = 20;
+    let h = t / sub as f64;
+    for k in 0..n {
+        // Sample.
+        th_est += w_est * t;
+        let err = th - th_est;
+        th_est += p.pll_kp * err * t;
+        w_est += p.pll_ki * err * t;
+        let (speed_tick, position_tick) = (k % sd == 0, k % pd == 0);
+        match kind {
+            StepKind::Current => i_ref = amplitude,
+            StepKind::Speed => {
+                w_ref = amplitude;
+            }
+            StepKind::Position => {
+                if position_tick {
+                    w_ref = g.position_kp * (amplitude - th);
+                }
+            }
+        }
+        if kind != StepKind::Current && speed_tick {
+            let e = w_ref - w_est;
+            int_w += g.speed.1 * e * ts;
+            i_ref = tf.update(g.speed.0 * e + int_w);
+        }
+        let e = i_ref - i;
+        int_i += g.current.1 * e * t;
+        let u = g.current.0 * e + int_i;
+        out.push(match kind {
+            StepKind::Current => i,
+            StepKind::Speed => w_est,
+            StepKind::Position => th,
+        });
+        // The period: last period's voltage on the winding; the mechanics
+        // from the current along the exact exponential.
+        let i0 = i;
+        let i_inf = u_prev / p.r_ohm;
+        for s in 1..=sub {
+            let tau = s as f64 * h;
+            let i_mid = i_inf + (i0 - i_inf) * (-p.r_ohm * (tau - 0.5 * h) / p.l_h).exp();
+            let torque = p.kt_n_m_a * i_mid;
+            if jl > 0.0 {
+                let f = kax * (th - thl) + cax * (w - wl);
+                w += h * (torque - p.viscous_n_m_s_rad * w - f) / jm;
+                wl += h * f / jl;
+                th += h * w;
+                thl += h * wl;
+            } else {
+                w += h * (torque - p.viscous_n_m_s_rad * w) / jm;
+                th += h * w;
+            }
+        }
+        i = a * i0 + b * u_prev;
+        u_prev = u;
+        let _ = (speed_tick, position_tick);
+    }
+    out
+}
+
+/// Overshoot (%) of a response to a step of `amplitude` that settles there.
+pub fn overshoot_pct(y: &[f64], amplitude: f64) -> f64 {
+    let peak = y.iter().map(|v| v / amplitude).fold(f64::MIN, f64::max);
+    ((peak - 1.0) * 100.0).max(0.0)
+}
