@@ -251,6 +251,10 @@ pub fn bench(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     let cases = [
         ("30hz_60deg", Asked { current_bw_hz: 1000.0, speed_bw_hz: 30.0, phase_margin_deg: 60.0, position_bw_hz: 5.0 }, false),
         ("60hz_50deg", Asked { current_bw_hz: 1000.0, speed_bw_hz: 60.0, phase_margin_deg: 50.0, position_bw_hz: 10.0 }, false),
+        // Below the rod's ≈32 Hz anti-resonance and the ≈380 Hz torsional
+        // mode, where the rigid design model holds.
+        ("10hz_60deg", Asked { current_bw_hz: 300.0, speed_bw_hz: 10.0, phase_margin_deg: 60.0, position_bw_hz: 2.0 }, false),
+        ("15hz_55deg", Asked { current_bw_hz: 400.0, speed_bw_hz: 15.0, phase_margin_deg: 55.0, position_bw_hz: 3.0 }, false),
     ];
     let mut table = Vec::new();
     let mut all = Vec::new();
