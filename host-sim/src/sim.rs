@@ -235,3 +235,34 @@ impl ClosedLoop {
 fn broken(cmd: &PwmCommand) -> PwmCommand {
     PwmCommand { brake_release: cmd.brake_release, ..PwmCommand::OFF }
 }
+
+/// The nominal rig's rated payload hanging vertically with the rod at
+/// `x0_m`: commissioned, homed there, enabled and settled (0.2 s), with
+/// `capture` attached if given. Where the core's closed-loop tests and
+/// benchmarks start.
+pub fn holding_vertical(
+    x0_m: f64,
+    seed: u64,
+    capture: Option<&'static servo_core::capture::CaptureStore>,
+) -> anyhow::Result<ClosedLoop> {
+    let rig = crate::config::RigConfig::nominal()?;
+    let mut plant = Plant::new(rig.plant.clone(), seed);
+    plant.set_initial_state((x0_m - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), std::f64::consts::FRAC_PI_2);
+    let mut controller = Controller::try_new(commissioned_control(rig.control, &plant)).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if let Some(store) = capture {
+        controller.attach_capture_store(store);
+    }
+    let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
+    let ok = |r: Result<servo_core::CommandOutcome, servo_core::CommandError>, what: &str| {
+        r.map(|_| ()).map_err(|e| anyhow::anyhow!("{what}: {e:?}"))
+    };
+    ok(cl.controller.command(servo_core::Command::SetHome { position_m: x0_m as f32 }), "SetHome")?;
+    ok(cl.controller.command(servo_core::Command::Enable), "Enable")?;
+    for _ in 0..4000 {
+        cl.step();
+    }
+    if cl.controller.mode() != servo_core::Mode::Running {
+        anyhow::bail!("not Running after enabling: {:?}, faults {:?}", cl.controller.mode(), cl.controller.faults().names().collect::<Vec<_>>());
+    }
+    Ok(cl)
+}

@@ -4,28 +4,15 @@
 //! off, a commanded stop decelerates to rest and holds.
 
 use host_sim::config::RigConfig;
-use host_sim::plant::Plant;
-use host_sim::sim::{commissioned_control, ClosedLoop};
+use host_sim::sim::{holding_vertical, ClosedLoop};
 use servo_core::controller::ApplyError;
 use servo_core::params::ValidatedParams;
 use servo_core::{Command, Controller, Mode, Readiness};
-use std::f64::consts::PI;
 
 const X0_M: f64 = 0.25;
 
 fn holding() -> ClosedLoop {
-    let rig = RigConfig::nominal().unwrap();
-    let mut plant = Plant::new(rig.plant.clone(), 5);
-    plant.set_initial_state((X0_M - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), PI / 2.0);
-    let controller = Controller::try_new(commissioned_control(rig.control, &plant)).unwrap();
-    let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
-    cl.controller.command(Command::SetHome { position_m: X0_M as f32 }).unwrap();
-    cl.controller.command(Command::Enable).unwrap();
-    for _ in 0..4000 {
-        cl.step();
-    }
-    assert_eq!(cl.controller.mode(), Mode::Running);
-    cl
+    holding_vertical(X0_M, 5, None).unwrap()
 }
 
 /// q current (plant truth) every PWM period of a 100 mm move up against

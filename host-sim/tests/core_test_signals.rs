@@ -4,13 +4,12 @@
 //! form, the refusals, and `Disable` or a fault aborting a test.
 
 use host_sim::config::RigConfig;
-use host_sim::plant::Plant;
-use host_sim::sim::{commissioned_control, ClosedLoop};
+use host_sim::sim::{holding_vertical, ClosedLoop};
 use servo_core::capture::{resolution, CaptureStore};
 use servo_core::protocol::{heapless::Vec, CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use servo_core::test_signals::{Chirp, TestPhase};
 use servo_core::{Command, CommandError, Controller, FaultSet, Mode};
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 const X0_M: f64 = 0.25;
 const PWM_HZ: f64 = 20_000.0;
@@ -18,19 +17,7 @@ const PWM_HZ: f64 = 20_000.0;
 /// The rated payload hanging vertically at 250 mm, enabled and settled,
 /// with a capture store attached.
 fn holding() -> ClosedLoop {
-    let rig = RigConfig::nominal().unwrap();
-    let mut plant = Plant::new(rig.plant.clone(), 5);
-    plant.set_initial_state((X0_M - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), PI / 2.0);
-    let mut controller = Controller::try_new(commissioned_control(rig.control, &plant)).unwrap();
-    controller.attach_capture_store(Box::leak(Box::new(CaptureStore::new())));
-    let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
-    cl.controller.command(Command::SetHome { position_m: X0_M as f32 }).unwrap();
-    cl.controller.command(Command::Enable).unwrap();
-    for _ in 0..4000 {
-        cl.step();
-    }
-    assert_eq!(cl.controller.mode(), Mode::Running);
-    cl
+    holding_vertical(X0_M, 5, Some(Box::leak(Box::new(CaptureStore::new())))).unwrap()
 }
 
 fn arm(cl: &mut ClosedLoop, signals: &[Signal], decimation: u16, samples: u16, pre_trigger: u16) {
