@@ -55,8 +55,19 @@ fn rem(s: &Segment) -> Remainder {
 
 /// Steps of ±1 every 700 samples, starting at 500.
 fn steps(n: usize) -> (Vec<f64>, Vec<usize>) {
-    let at: Vec<usize> = (0..).map(|k| 500 + 700 * k).take_while(|i| *i < n).collect();
-    let r = (0..n).map(|i| if at.iter().filter(|a| **a <= i).count() % 2 == 1 { 1.0 } else { 0.0 }).collect();
+    let at: Vec<usize> = (0..)
+        .map(|k| 500 + 700 * k)
+        .take_while(|i| *i < n)
+        .collect();
+    let r = (0..n)
+        .map(|i| {
+            if at.iter().filter(|a| **a <= i).count() % 2 == 1 {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
     (r, at)
 }
 
@@ -80,9 +91,24 @@ fn energy_share_after_events_has_its_closed_form() {
     // 321 samples (20 before, 300 after, the event's own) per event.
     let n = 10_000;
     let ev: Vec<usize> = (0..10).map(|k| 400 + 900 * k).collect();
-    let r: Vec<f64> = (0..n).map(|i| if ev.iter().any(|e| i >= *e && i < e + 100) { 1.0 } else { 0.0 }).collect();
+    let r: Vec<f64> = (0..n)
+        .map(|i| {
+            if ev.iter().any(|e| i >= *e && i < e + 100) {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let s = seg(r, true);
-    let (e, t) = events::share_after(&[&s], &rem(&s), TORQUE, std::slice::from_ref(&ev), events::EVENT_BEFORE_S, events::EVENT_AFTER_S);
+    let (e, t) = events::share_after(
+        &[&s],
+        &rem(&s),
+        TORQUE,
+        std::slice::from_ref(&ev),
+        events::EVENT_BEFORE_S,
+        events::EVENT_AFTER_S,
+    );
     assert!((e - 100.0).abs() < 1e-9, "energy share {e}");
     let expect = 100.0 * (10 * 321) as f64 / n as f64;
     assert!((t - expect).abs() < 1e-9, "time share {t} vs {expect}");
@@ -95,17 +121,38 @@ fn energy_share_after_events_has_its_closed_form() {
 fn a_sinusoid_is_periodic_at_its_period_and_noise_is_white() {
     let n = 8000;
     let f = 7.0;
-    let x: Vec<f64> =
-        (0..n).map(|i| (std::f64::consts::TAU * f * i as f64 * DT).sin()).zip(noise(n, 0.2, 2)).map(|(a, b)| a + b).collect();
+    let x: Vec<f64> = (0..n)
+        .map(|i| (std::f64::consts::TAU * f * i as f64 * DT).sin())
+        .zip(noise(n, 0.2, 2))
+        .map(|(a, b)| a + b)
+        .collect();
     let s = seg(x, true);
-    let ts = events::analyse(&[&s], &rem(&s), TORQUE, &[vec![]], 0.0);
+    let ts = events::analyse(
+        &[&s],
+        &rem(&s),
+        TORQUE,
+        &[vec![]],
+        0.0,
+        &events::kinematic_periods(Some(4)),
+    );
     let p = ts.dominant_period_s.expect("a period");
     assert!((p - 1.0 / f).abs() <= 2.0 * DT, "period {p} vs {}", 1.0 / f);
     assert_eq!(ts.character, "periodic", "{}", ts.character_why);
 
     let w = seg(noise(n, 1.0, 3), true);
-    let tw = events::analyse(&[&w], &rem(&w), TORQUE, &[vec![]], 0.0);
-    assert!(tw.white && tw.ljung_box_p > events::WHITE_P, "white noise: p = {}", tw.ljung_box_p);
+    let tw = events::analyse(
+        &[&w],
+        &rem(&w),
+        TORQUE,
+        &[vec![]],
+        0.0,
+        &events::kinematic_periods(Some(4)),
+    );
+    assert!(
+        tw.white && tw.ljung_box_p > events::WHITE_P,
+        "white noise: p = {}",
+        tw.ljung_box_p
+    );
     assert_eq!(tw.character, "broadband (white)", "{}", tw.character_why);
 }
 
@@ -138,21 +185,40 @@ fn piecewise_constant_disturbance_is_found_and_noise_is_not_modelled() {
     // at other times.
     let mk = |shift: usize, seed: u64, held: bool| {
         let (r, _) = steps(n + shift);
-        seg(r[shift..].iter().zip(noise(n, 0.02, seed)).map(|(a, b)| 0.2 * a + b).collect(), held)
+        seg(
+            r[shift..]
+                .iter()
+                .zip(noise(n, 0.02, seed))
+                .map(|(a, b)| 0.2 * a + b)
+                .collect(),
+            held,
+        )
     };
     let (tr, he) = (mk(0, 5, false), mk(333, 6, true));
     let (rt, rh) = (rem(&tr), rem(&he));
     let g_h = disturbance::gap(&[&he], &rh, None, &w);
     let (d, _, _) = disturbance::fit(&[&tr], &rt, &[&he], &rh, &nominal, &w, TORQUE, g_h, g_h);
-    assert!(d.primary_shrink_pct >= 80.0, "steps: shrink {:.1} %", d.primary_shrink_pct);
+    assert!(
+        d.primary_shrink_pct >= 80.0,
+        "steps: shrink {:.1} %",
+        d.primary_shrink_pct
+    );
     // Levels: the force 0.2 N·m / (L/2π) at the nut.
-    assert!((d.max_abs_level - 0.2 / phys.k).abs() < 0.1 * 0.2 / phys.k, "level {} N", d.max_abs_level);
+    assert!(
+        (d.max_abs_level - 0.2 / phys.k).abs() < 0.1 * 0.2 / phys.k,
+        "level {} N",
+        d.max_abs_level
+    );
 
     let (tn, hn) = (seg(noise(n, 0.02, 7), false), seg(noise(n, 0.02, 8), true));
     let (rtn, rhn) = (rem(&tn), rem(&hn));
     let g = disturbance::gap(&[&hn], &rhn, None, &w);
     let (dn, _, _) = disturbance::fit(&[&tn], &rtn, &[&hn], &rhn, &nominal, &w, TORQUE, g, g);
-    assert!(dn.primary_shrink_pct.abs() < 5.0, "white noise: shrink {:.1} %", dn.primary_shrink_pct);
+    assert!(
+        dn.primary_shrink_pct.abs() < 5.0,
+        "white noise: shrink {:.1} %",
+        dn.primary_shrink_pct
+    );
 }
 
 #[test]
@@ -162,7 +228,10 @@ fn locked_share_weighs_change_points_by_the_energy_they_explain() {
     let sig = vec![vec![200]];
     let cps = vec![vec![(210, 3.0), (700, 1.0)]];
     let (lk, ch) = events::locked_share(&[&s], &cps, &sig, 0.05);
-    assert!((lk - 75.0).abs() < 1e-9 && (ch - 10.1).abs() < 1e-9, "locked {lk} %, chance {ch} %");
+    assert!(
+        (lk - 75.0).abs() < 1e-9 && (ch - 10.1).abs() < 1e-9,
+        "locked {lk} %, chance {ch} %"
+    );
     // Equal weights: the share of change points.
     let (lk1, _) = events::locked_share(&[&s], &[vec![(210, 1.0), (700, 1.0)]], &sig, 0.05);
     assert!((lk1 - 50.0).abs() < 1e-9, "{lk1}");
@@ -181,9 +250,19 @@ fn a_force_disturbance_is_carried_to_the_position_channel() {
     let mk = |shift: usize, seed: u64, held: bool| {
         let (f, _) = steps(n + shift);
         let f: Vec<f64> = f[shift..].iter().map(|v| 300.0 * (2.0 * v - 1.0)).collect();
-        let mut s = seg(f.iter().zip(noise(n, 0.02, seed)).map(|(f, e)| phys.k * f + e).collect(), held);
+        let mut s = seg(
+            f.iter()
+                .zip(noise(n, 0.02, seed))
+                .map(|(f, e)| phys.k * f + e)
+                .collect(),
+            held,
+        );
         s.c_loc = vec![c; n];
-        let p: Vec<f64> = f.iter().zip(noise(n, 1e-6, seed + 100)).map(|(f, e)| -c * f + e).collect();
+        let p: Vec<f64> = f
+            .iter()
+            .zip(noise(n, 1e-6, seed + 100))
+            .map(|(f, e)| -c * f + e)
+            .collect();
         s.y[POSITION] = Some(p.clone());
         s.r[POSITION] = Some(p);
         s
@@ -198,6 +277,14 @@ fn a_force_disturbance_is_carried_to_the_position_channel() {
     let (d, _, _) = disturbance::fit(&[&tr], &rt, &[&he], &rh, &nominal, &w, TORQUE, g_h, gp);
     assert_eq!(d.channels, ["torque", "position"], "{d:?}");
     assert_eq!(d.acting_channels, ["torque", "position"]);
-    assert!(d.acting_weighted_shrink_pct >= 80.0, "torque + position: shrink {:.1} %", d.acting_weighted_shrink_pct);
-    assert!((d.max_abs_level - 300.0).abs() < 30.0, "level {} N", d.max_abs_level);
+    assert!(
+        d.acting_weighted_shrink_pct >= 80.0,
+        "torque + position: shrink {:.1} %",
+        d.acting_weighted_shrink_pct
+    );
+    assert!(
+        (d.max_abs_level - 300.0).abs() < 30.0,
+        "level {} N",
+        d.max_abs_level
+    );
 }

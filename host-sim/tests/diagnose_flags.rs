@@ -6,10 +6,10 @@ mod diagnose_support;
 
 use diagnose_support::truth::{nominal_rig, plant_effects, truth_log};
 use diagnose_support::TrueEffect;
-use host_sim::scenario::identification::{run, Experiment};
 use host_sim::diagnose::diagnose;
 use host_sim::diagnose::effects::Effect;
 use host_sim::diagnose::residual::{Nominal, Physics};
+use host_sim::scenario::identification::{run, Experiment};
 
 #[test]
 fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
@@ -18,7 +18,11 @@ fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
     // Truth rig: full plant + control core with the lead error.
     let rig = nominal_rig();
     let p = Physics::from_rig(&rig);
-    let truth = [TrueEffect { effect: Effect::LeadErrorPerRev, params: vec![6e-6, -3e-6], hyper: 0.0 }];
+    let truth = [TrueEffect {
+        effect: Effect::LeadErrorPerRev,
+        params: vec![6e-6, -3e-6],
+        hyper: 0.0,
+    }];
     let strip = |mut l: host_sim::diagnose::log::Log| {
         l.columns.remove("current_q_a");
         l.columns.remove("voltage_q_v");
@@ -37,11 +41,17 @@ fn per_rev_lead_error_and_eccentricity_are_flagged_without_a_current() {
         pair,
         "not flagged: {:?}; ranking {:?}",
         s.indistinguishable,
-        s.ranking.iter().map(|r| (&r.effect, r.weighted_shrink_pct)).collect::<Vec<_>>()
+        s.ranking
+            .iter()
+            .map(|r| (&r.effect, r.weighted_shrink_pct))
+            .collect::<Vec<_>>()
     );
     assert!(s.ruled_out.iter().any(|r| r.contains("no current")));
     // Friction effects need the torque channel: not applicable, not ranked.
-    assert!(s.not_ranked.iter().any(|n| n.effect == "coulomb_asym" && n.status == "not_applicable"));
+    assert!(s
+        .not_ranked
+        .iter()
+        .any(|n| n.effect == "coulomb_asym" && n.status == "not_applicable"));
 }
 
 #[test]
@@ -51,7 +61,11 @@ fn an_effect_the_training_data_cannot_fit_is_reported_not_ranked() {
     // excited in training.
     let rig = nominal_rig();
     let p = Physics::from_rig(&rig);
-    let truth = [TrueEffect { effect: Effect::CoulombAsym, params: vec![0.05, 0.12], hyper: 0.0 }];
+    let truth = [TrueEffect {
+        effect: Effect::CoulombAsym,
+        params: vec![0.05, 0.12],
+        hyper: 0.0,
+    }];
     let mut one_way = Experiment::random(&rig, 5, 6.0);
     one_way.start_m = 0.1;
     one_way.moves = vec![(0.3, 0.35)];
@@ -59,14 +73,21 @@ fn an_effect_the_training_data_cannot_fit_is_reported_not_ranked() {
     let held = truth_log(&rig, &truth, 6, 8.0);
     let d = diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).unwrap();
     let s = &d.summary;
-    let nr = |e: &str| s.not_ranked.iter().find(|n| n.effect == e).map(|n| (n.status.clone(), n.reason.clone()));
+    let nr = |e: &str| {
+        s.not_ranked
+            .iter()
+            .find(|n| n.effect == e)
+            .map(|n| (n.status.clone(), n.reason.clone()))
+    };
     let (status, reason) = nr("coulomb_asym").expect("coulomb_asym not ranked");
     assert_eq!(status, "not_converged");
     assert!(reason.contains("coulomb_neg_n_m"), "{reason}");
     assert!(s.ranking.iter().all(|r| r.effect != "coulomb_asym"));
     // A shape parameter whose optimum sits at its grid edge is reported too.
     assert!(
-        s.not_ranked.iter().any(|n| n.status == "not_converged" && n.reason.contains("grid edge")),
+        s.not_ranked
+            .iter()
+            .any(|n| n.status == "not_converged" && n.reason.contains("grid edge")),
         "{:#?}",
         s.not_ranked
     );
@@ -78,7 +99,11 @@ fn phase_currents_are_park_transformed_with_the_encoder_angle() {
     // (i_d = 0, amplitude-invariant Clarke) gives the same diagnosis.
     let rig = nominal_rig();
     let p = Physics::from_rig(&rig);
-    let truth = [TrueEffect { effect: Effect::LoadOffset, params: vec![120.0], hyper: 0.0 }];
+    let truth = [TrueEffect {
+        effect: Effect::LoadOffset,
+        params: vec![120.0],
+        hyper: 0.0,
+    }];
     let dq = truth_log(&rig, &truth, 41, 6.0);
     let mut abc = dq.clone();
     let iq = abc.columns.remove("current_q_a").unwrap();
@@ -95,10 +120,19 @@ fn phase_currents_are_park_transformed_with_the_encoder_angle() {
     abc.columns.insert("current_a_a".into(), a);
     abc.columns.insert("current_b_a".into(), b);
     abc.columns.insert("current_c_a".into(), c);
-    let d1 = diagnose(&dq, None, Nominal::Physics(p.clone()), p.tilt_deg).unwrap().summary;
-    let d2 = diagnose(&abc, None, Nominal::Physics(p.clone()), p.tilt_deg).unwrap().summary;
+    let d1 = diagnose(&dq, None, Nominal::Physics(p.clone()), p.tilt_deg)
+        .unwrap()
+        .summary;
+    let d2 = diagnose(&abc, None, Nominal::Physics(p.clone()), p.tilt_deg)
+        .unwrap()
+        .summary;
     assert_eq!(d1.top_effect.as_deref(), Some("load_offset"));
     assert_eq!(d2.top_effect, d1.top_effect);
     let f = |s: &host_sim::diagnose::Summary| s.ranking[0].params["load_offset_n"];
-    assert!((f(&d1) - f(&d2)).abs() < 1e-6 * f(&d1).abs(), "{} vs {}", f(&d1), f(&d2));
+    assert!(
+        (f(&d1) - f(&d2)).abs() < 1e-6 * f(&d1).abs(),
+        "{} vs {}",
+        f(&d1),
+        f(&d2)
+    );
 }

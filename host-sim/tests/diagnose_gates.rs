@@ -19,9 +19,19 @@ fn heldout_identical_to_training_is_flagged_and_nothing_named() {
     let rig = nominal_rig();
     let logs = nominal_logs(&rig, 1);
     let p = Physics::from_rig(&rig);
-    let d = diagnose(&logs.train, Some(&logs.train.clone()), Nominal::Physics(p.clone()), p.tilt_deg).unwrap();
+    let d = diagnose(
+        &logs.train,
+        Some(&logs.train.clone()),
+        Nominal::Physics(p.clone()),
+        p.tilt_deg,
+    )
+    .unwrap();
     let s = &d.summary;
-    let g = s.gates.iter().find(|g| g.kind == "heldout_is_training").expect("gate");
+    let g = s
+        .gates
+        .iter()
+        .find(|g| g.kind == "heldout_is_training")
+        .expect("gate");
     assert!(g.message.contains("over-fitting"), "{}", g.message);
     assert_eq!(s.verdict.kind, "nothing_to_find");
     assert_eq!(s.top_effect, None);
@@ -34,7 +44,13 @@ fn a_mismatched_rig_file_is_flagged_with_channel_and_scale() {
     let logs = nominal_logs(&rig, 2);
     let wrong = mismatched_rig(&rig);
     let p = Physics::from_rig(&wrong);
-    let d = diagnose(&logs.train, Some(&logs.held), Nominal::Physics(p.clone()), p.tilt_deg).unwrap();
+    let d = diagnose(
+        &logs.train,
+        Some(&logs.held),
+        Nominal::Physics(p.clone()),
+        p.tilt_deg,
+    )
+    .unwrap();
     let s = &d.summary;
     // A payload error on a vertical axis is a constant force, and the
     // torque constant's error may cancel part of it in the torque scale:
@@ -43,11 +59,20 @@ fn a_mismatched_rig_file_is_flagged_with_channel_and_scale() {
     let g = s
         .gates
         .iter()
-        .find(|g| matches!(g.kind.as_str(), "physics_mismatch" | "nominal_poor_fit" | "implausible_fits"))
+        .find(|g| {
+            matches!(
+                g.kind.as_str(),
+                "physics_mismatch" | "nominal_poor_fit" | "implausible_fits"
+            )
+        })
         .unwrap_or_else(|| panic!("no gate: {}", s.verdict.headline));
     if g.kind == "physics_mismatch" {
         // The log's torque is the true K_t i; the rig file claims 1.3 K_t.
-        assert!(g.figure > 1.0 + host_sim::diagnose::gates::TORQUE_SCALE_TOLERANCE && g.figure < 1.35, "scale {}", g.figure);
+        assert!(
+            g.figure > 1.0 + host_sim::diagnose::gates::TORQUE_SCALE_TOLERANCE && g.figure < 1.35,
+            "scale {}",
+            g.figure
+        );
         assert_eq!(g.channel.as_deref(), Some("torque"));
     }
     assert!(s.verdict.cause.is_none(), "{}", s.verdict.headline);
@@ -58,12 +83,19 @@ fn a_mismatched_rig_file_is_flagged_with_channel_and_scale() {
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.find(&kind).unwrap() < md.find("## Verdict").unwrap());
     // Residual series per channel with the change points, and the plots.
-    for f in ["residual_torque.csv", "residual_position.csv", "residual_events_torque.png"] {
+    for f in [
+        "residual_torque.csv",
+        "residual_position.csv",
+        "residual_events_torque.png",
+    ] {
         assert!(dir.path().join(f).exists(), "{f}");
     }
     let csv = std::fs::read_to_string(dir.path().join("residual_torque.csv")).unwrap();
     assert!(csv.starts_with("part,run,time_s,log_row,weight,nominal_residual,after_stack,after_disturbance,change_point"));
-    assert_eq!(csv.lines().count() - 1, d.segments.iter().map(|s| s.len()).sum::<usize>());
+    assert_eq!(
+        csv.lines().count() - 1,
+        d.segments.iter().map(|s| s.len()).sum::<usize>()
+    );
 }
 
 #[test]
@@ -87,7 +119,9 @@ fn plausibility_bounds_reject_what_no_rig_has() {
 }
 
 fn data(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cranfield-linear-actuator").join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/cranfield-linear-actuator")
+        .join(name);
     p.exists().then_some(p)
 }
 
@@ -100,7 +134,14 @@ fn reference_mode_names_coefficients_in_the_logs_units_and_refuses_itself() {
     let normal = cranfield::convert(&n).unwrap().log;
     let reg = fit_regression(&normal).unwrap();
     let log = cranfield::convert(&b2).unwrap().log;
-    let d = diagnose_against(&log, None, Some(&normal), Nominal::Regression(reg.clone()), 0.0).unwrap();
+    let d = diagnose_against(
+        &log,
+        None,
+        Some(&normal),
+        Nominal::Regression(reg.clone()),
+        0.0,
+    )
+    .unwrap();
     for r in &d.summary.ranking {
         let e = host_sim::diagnose::effects::by_name(&r.effect).unwrap();
         for k in r.params.keys() {
@@ -108,7 +149,9 @@ fn reference_mode_names_coefficients_in_the_logs_units_and_refuses_itself() {
             // lead the rig does not have; no angles the log does not hold.
             if e.channels() == [host_sim::diagnose::residual::TORQUE] || e == Effect::LoadOffset {
                 assert!(
-                    (k.contains("_a") || k.ends_with("_m_s")) && !k.contains("n_m") && !k.ends_with("_n"),
+                    (k.contains("_a") || k.ends_with("_m_s"))
+                        && !k.contains("n_m")
+                        && !k.ends_with("_n"),
                     "{}: `{k}`",
                     r.effect
                 );
@@ -119,8 +162,13 @@ fn reference_mode_names_coefficients_in_the_logs_units_and_refuses_itself() {
     let lo = d.summary.ranking.iter().find(|r| r.effect == "load_offset");
     assert!(lo.is_none_or(|r| r.params.contains_key("current_offset_a")));
     // The training log is the reference itself: flagged, nothing named.
-    let same = diagnose_against(&normal, None, Some(&normal), Nominal::Regression(reg), 0.0).unwrap();
-    assert!(same.summary.gates.iter().any(|g| g.kind == "training_is_reference"));
+    let same =
+        diagnose_against(&normal, None, Some(&normal), Nominal::Regression(reg), 0.0).unwrap();
+    assert!(same
+        .summary
+        .gates
+        .iter()
+        .any(|g| g.kind == "training_is_reference"));
     assert_eq!(same.summary.verdict.kind, "nothing_to_find");
     assert_eq!(same.summary.top_effect, None);
 }

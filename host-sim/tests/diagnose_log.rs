@@ -18,7 +18,10 @@ fn errors(log: &Log) -> Vec<String> {
 fn clean_csv_has_no_errors_and_names_ruled_out_analyses() {
     let log = csv("time_s,position_reference_m,terminal_position_m,current_q_a,extra\n0,0.1,0.1,1.0,7\n0.001,0.1,0.1,1.0,7\n0.002,0.1,0.1,1.0,7\n");
     assert!(errors(&log).is_empty(), "{:?}", errors(&log));
-    assert!(log.issues.iter().any(|i| i.severity == Severity::Note && i.column.as_deref() == Some("extra")));
+    assert!(log
+        .issues
+        .iter()
+        .any(|i| i.severity == Severity::Note && i.column.as_deref() == Some("extra")));
     let ruled = log.ruled_out().join("\n");
     assert!(ruled.contains("no motor_angle_rad"), "{ruled}");
     assert!(ruled.contains("no voltage_q_v"), "{ruled}");
@@ -38,7 +41,10 @@ fn unsorted_duplicate_nan_and_unit_mistakes_are_reported_with_rows() {
          0.010,0.10,1\n\
          0.011,0.10,1\n");
     let e = errors(&log);
-    let has = |row: usize, what: &str| e.iter().any(|s| s.contains(&format!("row {row} ")) && s.contains(what));
+    let has = |row: usize, what: &str| {
+        e.iter()
+            .any(|s| s.contains(&format!("row {row} ")) && s.contains(what))
+    };
     assert!(has(3, "duplicate timestamp"), "{e:#?}");
     assert!(has(4, "unsorted"), "{e:#?}");
     assert!(has(5, "NaN"), "{e:#?}");
@@ -46,7 +52,9 @@ fn unsorted_duplicate_nan_and_unit_mistakes_are_reported_with_rows() {
     assert!(has(7, "not a number"), "{e:#?}");
     // The gap is a warning with its row, and splits the run.
     assert!(
-        log.issues.iter().any(|i| i.severity == Severity::Warning && i.row == Some(8) && i.message.contains("gap")),
+        log.issues.iter().any(|i| i.severity == Severity::Warning
+            && i.row == Some(8)
+            && i.message.contains("gap")),
         "{:#?}",
         log.issues
     );
@@ -55,9 +63,15 @@ fn unsorted_duplicate_nan_and_unit_mistakes_are_reported_with_rows() {
 #[test]
 fn diagnose_refuses_a_log_with_errors_and_lists_them() {
     let log = csv("time_s,terminal_position_m,current_q_a\n0,0.1,1\n0,0.1,1\n");
-    let p = host_sim::diagnose::residual::Physics::from_rig(&host_sim::config::RigConfig::nominal().unwrap());
-    let Err(err) = host_sim::diagnose::diagnose(&log, None, host_sim::diagnose::residual::Nominal::Physics(p), 90.0)
-    else {
+    let p = host_sim::diagnose::residual::Physics::from_rig(
+        &host_sim::config::RigConfig::nominal().unwrap(),
+    );
+    let Err(err) = host_sim::diagnose::diagnose(
+        &log,
+        None,
+        host_sim::diagnose::residual::Nominal::Physics(p),
+        90.0,
+    ) else {
         panic!("a log with errors was diagnosed");
     };
     let msg = format!("{err:#}");
@@ -80,6 +94,14 @@ INFO  cylinder-servo 0.1.0 on nucleo
     let scale = log.get("terminal_position_m").unwrap();
     assert_eq!(scale[0], 0.0999);
     assert!(scale[1].is_nan());
-    assert!(log.errors().any(|i| i.row == Some(2) && i.message.contains("line 4")), "{:#?}", log.issues);
-    assert!(log.issues.iter().any(|i| i.column.as_deref() == Some("new_field") && i.message.contains("unknown")));
+    assert!(
+        log.errors()
+            .any(|i| i.row == Some(2) && i.message.contains("line 4")),
+        "{:#?}",
+        log.issues
+    );
+    assert!(log
+        .issues
+        .iter()
+        .any(|i| i.column.as_deref() == Some("new_field") && i.message.contains("unknown")));
 }

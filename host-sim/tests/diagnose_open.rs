@@ -54,6 +54,9 @@ struct Outcome {
     disturbance_change_points: usize,
     character: String,
     character_ok: Option<bool>,
+    character_why: String,
+    /// The primary channel's statistics behind the character.
+    character_stats: String,
     event_share_reported_pct: Option<f64>,
     event_share_truth_pct: Option<f64>,
     gates: Vec<String>,
@@ -66,7 +69,14 @@ struct Outcome {
 fn run_case(spec: Spec) -> Outcome {
     let t0 = std::time::Instant::now();
     let rig = nominal_rig();
-    let (name, family, logs, diag_rig, library, chars): (String, &str, Logs, _, Vec<Effect>, Option<&[&str]>) = match spec {
+    let (name, family, logs, diag_rig, library, chars): (
+        String,
+        &str,
+        Logs,
+        _,
+        Vec<Effect>,
+        Option<&[&str]>,
+    ) = match spec {
         Spec::HeldOut(e, seed) => (
             format!("held out: {}", e.name()),
             "held_out_library",
@@ -75,10 +85,22 @@ fn run_case(spec: Spec) -> Outcome {
             ALL.iter().copied().filter(|x| *x != e).collect(),
             Some(library_characters(e)),
         ),
-        Spec::Novel(n, seed) => {
-            (n.name().to_string(), "novel", novel_logs(&rig, n, 60_000 + seed), rig.clone(), ALL.to_vec(), Some(n.characters()))
-        }
-        Spec::Nominal(seed) => ("nominal rig".into(), "nominal", nominal_logs(&rig, 70_000 + seed), rig.clone(), ALL.to_vec(), None),
+        Spec::Novel(n, seed) => (
+            n.name().to_string(),
+            "novel",
+            novel_logs(&rig, n, 60_000 + seed),
+            rig.clone(),
+            ALL.to_vec(),
+            Some(n.characters()),
+        ),
+        Spec::Nominal(seed) => (
+            "nominal rig".into(),
+            "nominal",
+            nominal_logs(&rig, 70_000 + seed),
+            rig.clone(),
+            ALL.to_vec(),
+            None,
+        ),
         Spec::Mismatched(seed) => (
             "nominal rig vs mismatched rig file".into(),
             "mismatched",
@@ -89,8 +111,15 @@ fn run_case(spec: Spec) -> Outcome {
         ),
     };
     let p = Physics::from_rig(&diag_rig);
-    let d = diagnose_with(&logs.train, Some(&logs.held), None, Nominal::Physics(p.clone()), p.tilt_deg, &Options { library })
-        .expect("diagnosis");
+    let d = diagnose_with(
+        &logs.train,
+        Some(&logs.held),
+        None,
+        Nominal::Physics(p.clone()),
+        p.tilt_deg,
+        &Options { library },
+    )
+    .expect("diagnosis");
     let s = &d.summary;
     let v = &s.verdict;
     let category = match v.kind.as_str() {
@@ -99,15 +128,28 @@ fn run_case(spec: Spec) -> Outcome {
         "disturbance" => "disturbance_modelled",
         _ => "honestly_unexplained",
     };
-    let primary = CHANNELS.iter().position(|c| *c == s.primary_channel).unwrap_or(0);
-    let ts = s.time_structure.iter().find(|t| t.channel == s.primary_channel);
+    let primary = CHANNELS
+        .iter()
+        .position(|c| *c == s.primary_channel)
+        .unwrap_or(0);
+    let ts = s
+        .time_structure
+        .iter()
+        .find(|t| t.channel == s.primary_channel);
     let (rep, tru) = if logs.held_events_s.is_empty() {
         (None, None)
     } else {
         let held = d.heldout();
         let rem = d.heldout_remainder();
         let ev = events::events_at(&held, &logs.held_events_s);
-        let (e, _) = events::share_after(&held, &rem, primary, &ev, events::EVENT_BEFORE_S, events::EVENT_AFTER_S);
+        let (e, _) = events::share_after(
+            &held,
+            &rem,
+            primary,
+            &ev,
+            events::EVENT_BEFORE_S,
+            events::EVENT_AFTER_S,
+        );
         (ts.map(|t| t.energy_after_events_pct), Some(e))
     };
     let character = v.remainder_character.clone();
@@ -130,6 +172,12 @@ fn run_case(spec: Spec) -> Outcome {
         disturbance_change_points: s.disturbance.as_ref().map_or(0, |x| x.heldout_change_points),
         character_ok: (category == "honestly_unexplained").then(|| chars.is_some_and(|c| c.contains(&character.as_str()))),
         character,
+        character_why: v.remainder_why.clone(),
+        character_stats: ts.map_or(String::new(), |t| format!(
+            "angle n={} {:.0}%; inputs {:.0}%; acf {:.2}±{:.2} @{:.3}s; events {:.0}/{:.0}%; motion {:.0}/{:.0}%; steps {:.0}%; slow {:.0}%; step/trend {:.2}; LB p {:.1e}",
+            t.angle_periods_per_rev, t.angle_explained_pct, t.input_r2_pct, t.acf_at_period, t.acf_standard_error,
+            t.dominant_period_s.unwrap_or(f64::NAN), t.energy_after_events_pct, t.time_after_events_pct,
+            t.energy_after_motion_pct, t.time_after_motion_pct, t.steps_explained_pct, t.slow_share_pct, t.step_over_trend, t.ljung_box_p)),
         event_share_reported_pct: rep,
         event_share_truth_pct: tru,
         gates: s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect(),
@@ -159,10 +207,16 @@ fn suite(specs: &[Spec], dir_name: &str) -> (Vec<Outcome>, serde_json::Value) {
 }
 
 fn write(dir_name: &str, figures: &serde_json::Value, rep: &str) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite").join(dir_name);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/diagnose_suite")
+        .join(dir_name);
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("report.md"), rep).unwrap();
-    std::fs::write(dir.join("suite.json"), serde_json::to_string_pretty(figures).unwrap()).unwrap();
+    std::fs::write(
+        dir.join("suite.json"),
+        serde_json::to_string_pretty(figures).unwrap(),
+    )
+    .unwrap();
     println!("{rep}");
 }
 
@@ -170,12 +224,23 @@ fn write(dir_name: &str, figures: &serde_json::Value, rep: &str) {
 fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, String) {
     let n = out.len();
     let count = |c: &str| out.iter().filter(|o| o.category == c).count();
-    let force: Vec<&Outcome> = out.iter().filter(|o| o.case.starts_with("force_")).collect();
-    let force_ok = force.iter().filter(|o| o.disturbance_weighted_pct >= 70.0).count();
+    let force: Vec<&Outcome> = out
+        .iter()
+        .filter(|o| o.case.starts_with("force_"))
+        .collect();
+    let force_ok = force
+        .iter()
+        .filter(|o| o.disturbance_weighted_pct >= 70.0)
+        .count();
     // The nominal and mismatched cases have no true character to name.
-    let unexpl: Vec<&Outcome> =
-        out.iter().filter(|o| o.character_ok.is_some() && matches!(o.family, "novel" | "held_out_library")).collect();
-    let char_ok = unexpl.iter().filter(|o| o.character_ok == Some(true)).count();
+    let unexpl: Vec<&Outcome> = out
+        .iter()
+        .filter(|o| o.character_ok.is_some() && matches!(o.family, "novel" | "held_out_library"))
+        .collect();
+    let char_ok = unexpl
+        .iter()
+        .filter(|o| o.character_ok == Some(true))
+        .count();
     // Event-locked gaps: short force pulses (the energy sits after them).
     // Steps and the miscount leave a lasting offset, not an event-locked
     // gap; their shares are listed in the outcomes for reference.
@@ -186,7 +251,14 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
         .collect();
     let ev_ok = ev.iter().filter(|(a, b)| (a - b).abs() <= 10.0).count();
     let mism: Vec<&Outcome> = out.iter().filter(|o| o.family == "mismatched").collect();
-    let mism_gated = mism.iter().filter(|o| o.gates.iter().any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))).count();
+    let mism_gated = mism
+        .iter()
+        .filter(|o| {
+            o.gates
+                .iter()
+                .any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))
+        })
+        .count();
     let figures = serde_json::json!({
         "cases": n,
         "confusion": {
@@ -254,15 +326,36 @@ fn open_world_sample() {
     ];
     let (out, _) = suite(&specs, "open_sample");
     for o in &out {
-        assert_ne!(o.category, "wrong", "{}: a library effect named as the cause: {}", o.case, o.headline);
+        assert_ne!(
+            o.category, "wrong",
+            "{}: a library effect named as the cause: {}",
+            o.case, o.headline
+        );
     }
     let pulses = &out[0];
-    assert_eq!(pulses.category, "disturbance_modelled", "{}", pulses.headline);
-    let (rep, tru) = (pulses.event_share_reported_pct.unwrap(), pulses.event_share_truth_pct.unwrap());
-    assert!((rep - tru).abs() <= 15.0, "event share reported {rep:.1} % vs truth {tru:.1} %");
-    assert!(out[3].verdict != "disturbance" && out[3].cause.is_none(), "nominal rig: {}", out[3].headline);
+    assert_eq!(
+        pulses.category, "disturbance_modelled",
+        "{}",
+        pulses.headline
+    );
+    let (rep, tru) = (
+        pulses.event_share_reported_pct.unwrap(),
+        pulses.event_share_truth_pct.unwrap(),
+    );
     assert!(
-        out[4].gates.iter().any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit")),
+        (rep - tru).abs() <= 15.0,
+        "event share reported {rep:.1} % vs truth {tru:.1} %"
+    );
+    assert!(
+        out[3].verdict != "disturbance" && out[3].cause.is_none(),
+        "nominal rig: {}",
+        out[3].headline
+    );
+    assert!(
+        out[4]
+            .gates
+            .iter()
+            .any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit")),
         "mismatched rig file not flagged: {:?}",
         out[4].gates
     );
@@ -286,15 +379,26 @@ fn specs(base: u64, novel_reps: u64) -> Vec<Spec> {
 /// Seed offset of the held-out draws: cases never looked at while the
 /// thresholds and the disturbance were set (those were set on seeds 0, 1).
 const HOLDOUT_SEED_BASE: u64 = 100;
+/// Seed offset of the second held-out draws (issue 13, character rules):
+/// drawn like the first, run once after the method was fixed on the tuning
+/// and the first held-out seeds.
+const HOLDOUT2_SEED_BASE: u64 = 200;
 
 #[test]
-#[ignore = "full open-world suite, the tuning seeds and the held-out seeds (≈ 1–2 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
+#[ignore = "full open-world suite, the tuning seeds and two held-out seed sets (≈ 1.5–2.5 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
 fn open_world_suite() {
     let t0 = std::time::Instant::now();
     let out: Vec<Outcome> = specs(0, 2).into_iter().map(run_case).collect();
-    let (mut figures, mut rep) = summarize(&out, t0.elapsed().as_secs_f64(), "Open-world suite (seeds the thresholds were set on)");
+    let (mut figures, mut rep) = summarize(
+        &out,
+        t0.elapsed().as_secs_f64(),
+        "Open-world suite (seeds the thresholds were set on)",
+    );
     let t1 = std::time::Instant::now();
-    let held: Vec<Outcome> = specs(HOLDOUT_SEED_BASE, 3).into_iter().map(run_case).collect();
+    let held: Vec<Outcome> = specs(HOLDOUT_SEED_BASE, 3)
+        .into_iter()
+        .map(run_case)
+        .collect();
     let (hf, hr) = summarize(
         &held,
         t1.elapsed().as_secs_f64(),
@@ -304,5 +408,24 @@ fn open_world_suite() {
     figures["holdout_seed_base"] = HOLDOUT_SEED_BASE.into();
     rep.push('\n');
     rep.push_str(&hr);
+    // The second held-out set, run once after the method was fixed on the
+    // first two (skipped while developing: DIAGNOSE_SKIP_HOLDOUT2=1).
+    if std::env::var_os("DIAGNOSE_SKIP_HOLDOUT2").is_none() {
+        let t2 = std::time::Instant::now();
+        let held2: Vec<Outcome> = specs(HOLDOUT2_SEED_BASE, 3)
+            .into_iter()
+            .map(run_case)
+            .collect();
+        let (hf2, hr2) = summarize(
+            &held2,
+            t2.elapsed().as_secs_f64(),
+            &format!("Second held-out seeds (from {HOLDOUT2_SEED_BASE} on; run once, after the character method was fixed)"),
+        );
+        figures["holdout_seeds_2"] = hf2;
+        figures["holdout2_seed_base"] = HOLDOUT2_SEED_BASE.into();
+        rep.push('\n');
+        rep.push_str(&hr2);
+    }
+    figures["total_wall_s"] = t0.elapsed().as_secs_f64().into();
     write("open", &figures, &rep);
 }

@@ -22,7 +22,10 @@ fn sixty_second_log_at_1khz_within_60_s_and_report_written() {
     let truth = [random_effect(Effect::Stribeck, &mut rng)];
     let t_sim = std::time::Instant::now();
     let log = truth_log(&rig, &truth, 4242, 60.0);
-    println!("truth rig: 60 s simulated (plant + core at 20 kHz) in {:.1} s", t_sim.elapsed().as_secs_f64());
+    println!(
+        "truth rig: 60 s simulated (plant + core at 20 kHz) in {:.1} s",
+        t_sim.elapsed().as_secs_f64()
+    );
     assert_eq!(log.len(), 60_000);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("log.csv");
@@ -47,22 +50,52 @@ fn sixty_second_log_at_1khz_within_60_s_and_report_written() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["top_effect"], "stribeck");
-    for key in ["ranking", "heldout_fit_before", "heldout_fit_after", "gap_shrink_pct"] {
+    for key in [
+        "ranking",
+        "heldout_fit_before",
+        "heldout_fit_after",
+        "gap_shrink_pct",
+    ] {
         assert!(!summary[key].is_null(), "summary.json lacks {key}");
     }
     let r0 = &summary["ranking"][0];
     assert!(r0["params"]["stribeck_torque_n_m"].as_f64().unwrap() > 0.0);
-    assert!(summary["gap_shrink_pct"].as_f64().unwrap() > 70.0, "{}", summary["gap_shrink_pct"]);
-    for f in ["report.md", "residual_time.png", "heatmap.png", "spectrum.png", "overlay.png"] {
-        assert!(out.join(f).metadata().unwrap().len() > 1000, "{f} missing or empty");
+    assert!(
+        summary["gap_shrink_pct"].as_f64().unwrap() > 70.0,
+        "{}",
+        summary["gap_shrink_pct"]
+    );
+    for f in [
+        "report.md",
+        "residual_time.png",
+        "heatmap.png",
+        "spectrum.png",
+        "overlay.png",
+    ] {
+        assert!(
+            out.join(f).metadata().unwrap().len() > 1000,
+            "{f} missing or empty"
+        );
     }
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("## Ranking") && md.contains("## Where the gap lies") && md.contains("stribeck"));
+    assert!(
+        md.contains("## Ranking")
+            && md.contains("## Where the gap lies")
+            && md.contains("stribeck")
+    );
     // Keep a copy for the documentation.
-    let keep = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite/example");
+    let keep =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite/example");
     std::fs::create_dir_all(&keep).unwrap();
     std::fs::copy(dir.path().join("log.csv"), keep.join("log.csv")).unwrap();
-    for f in ["report.md", "summary.json", "residual_time.png", "heatmap.png", "spectrum.png", "overlay.png"] {
+    for f in [
+        "report.md",
+        "summary.json",
+        "residual_time.png",
+        "heatmap.png",
+        "spectrum.png",
+        "overlay.png",
+    ] {
         std::fs::copy(out.join(f), keep.join(f)).unwrap();
     }
     let timing = serde_json::json!({
@@ -74,7 +107,11 @@ fn sixty_second_log_at_1khz_within_60_s_and_report_written() {
         "gap_shrink_pct": summary["gap_shrink_pct"],
         "truth": "stribeck (random plausible), full plant + control core",
     });
-    std::fs::write(keep.join("timing.json"), serde_json::to_string_pretty(&timing).unwrap()).unwrap();
+    std::fs::write(
+        keep.join("timing.json"),
+        serde_json::to_string_pretty(&timing).unwrap(),
+    )
+    .unwrap();
 }
 
 #[test]
@@ -84,7 +121,10 @@ fn closed_loop_replay_of_a_nominal_log_tracks_it() {
     let log = truth_log(&rig, &[], 77, 4.0);
     let r = host_sim::diagnose::replay::replay(&rig, &log, 4.0).unwrap();
     for s in &r.signals {
-        println!("{:<22} fit {:7.2} %  rms diff {:.3e}", s.signal, s.fit_pct, s.rms_difference);
+        println!(
+            "{:<22} fit {:7.2} %  rms diff {:.3e}",
+            s.signal, s.fit_pct, s.rms_difference
+        );
     }
     println!(
         "moves {}, shift saturated {:.1} %, aborted {:?}, wall {:.1} s for {:.1} s",
@@ -95,7 +135,11 @@ fn closed_loop_replay_of_a_nominal_log_tracks_it() {
     // its jerk-limited profile; the remainder goes through the bounded
     // position shift), so the replay compares like with like.
     let fit = |n: &str| r.signals.iter().find(|s| s.signal == n).unwrap().fit_pct;
-    assert!(fit("position_reference_m") > 80.0, "{}", fit("position_reference_m"));
+    assert!(
+        fit("position_reference_m") > 80.0,
+        "{}",
+        fit("position_reference_m")
+    );
     assert!(fit("terminal_position_m") > 80.0);
     assert!(r.moves >= 2, "{} moves replayed", r.moves);
 }

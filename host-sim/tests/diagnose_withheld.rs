@@ -35,7 +35,10 @@ struct Case {
 /// Seed offset of the suite (`DIAGNOSE_SUITE_SEED`, default 0) to re-draw
 /// every case.
 fn base_seed() -> u64 {
-    std::env::var("DIAGNOSE_SUITE_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0)
+    std::env::var("DIAGNOSE_SUITE_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0)
 }
 
 fn run_case(truth: &[Effect], seed: u64) -> Case {
@@ -47,7 +50,8 @@ fn run_case(truth: &[Effect], seed: u64) -> Case {
     let train = truth_log(&rig, &effects, 1000 + seed, DURATION_S);
     let held = truth_log(&rig, &effects, 2000 + seed, DURATION_S);
     let p = Physics::from_rig(&rig);
-    let d = diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).expect("diagnosis");
+    let d =
+        diagnose(&train, Some(&held), Nominal::Physics(p.clone()), p.tilt_deg).expect("diagnosis");
     let s = d.summary;
     Case {
         verdict: s.verdict.kind.clone(),
@@ -110,7 +114,11 @@ fn withheld_effect_suite() {
     let mut shrink_sum = 0.0;
     for c in &cases {
         let row = ALL.iter().position(|e| *e == c.truth[0]).unwrap();
-        let col = c.top.as_deref().and_then(|t| names.iter().position(|n| *n == t)).unwrap_or(names.len());
+        let col = c
+            .top
+            .as_deref()
+            .and_then(|t| names.iter().position(|n| *n == t))
+            .unwrap_or(names.len());
         m[row][col] += 1;
         if col == row {
             hits += 1;
@@ -128,8 +136,14 @@ fn withheld_effect_suite() {
     let mean_shrink = shrink_sum / cases.len() as f64;
     // Under the open-world verdict: the true effect named as the cause,
     // a wrong one named, or the gap left unexplained.
-    let verdict_right = cases.iter().filter(|c| c.cause.as_deref() == Some(c.truth[0].name())).count();
-    let verdict_wrong = cases.iter().filter(|c| c.cause.is_some() && c.cause.as_deref() != Some(c.truth[0].name())).count();
+    let verdict_right = cases
+        .iter()
+        .filter(|c| c.cause.as_deref() == Some(c.truth[0].name()))
+        .count();
+    let verdict_wrong = cases
+        .iter()
+        .filter(|c| c.cause.is_some() && c.cause.as_deref() != Some(c.truth[0].name()))
+        .count();
     let mut rep = String::new();
     let _ = writeln!(rep, "# Withheld-effect suite\n");
     let _ = writeln!(rep, "Truth rigs: the host-sim plant with `UnmodelledEffects` + the firmware control core (`ClosedLoop`, 20 kHz), moves planned by the core, logged at 1 kHz from its telemetry; the tool gets the nominal rig and the logs only.\n");
@@ -142,14 +156,26 @@ fn withheld_effect_suite() {
         "Nominal rig (no effect): top effect {}, best held-out shrink {:.1} % (ranking: {}).\n",
         nominal_case.top.as_deref().unwrap_or("none"),
         nominal_case.shrink,
-        nominal_case.ranking.iter().take(3).cloned().collect::<Vec<_>>().join(", ")
+        nominal_case
+            .ranking
+            .iter()
+            .take(3)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ")
     );
-    let _ = writeln!(rep, "Confusion matrix (rows: truth; columns: top-ranked; `none`: nothing ranked):\n");
+    let _ = writeln!(
+        rep,
+        "Confusion matrix (rows: truth; columns: top-ranked; `none`: nothing ranked):\n"
+    );
     let short: Vec<String> = (0..names.len()).map(|k| format!("{}", k + 1)).collect();
     let _ = writeln!(rep, "| truth \\ top | {} | none |", short.join(" | "));
     let _ = writeln!(rep, "|---|{}---|", "---|".repeat(names.len()));
     for (r, row) in m.iter().enumerate() {
-        let cells: Vec<String> = row.iter().map(|v| if *v == 0 { ".".into() } else { v.to_string() }).collect();
+        let cells: Vec<String> = row
+            .iter()
+            .map(|v| if *v == 0 { ".".into() } else { v.to_string() })
+            .collect();
         let _ = writeln!(rep, "| {} {} | {} |", r + 1, names[r], cells.join(" | "));
     }
     let _ = writeln!(rep, "\n## Cases\n\n| truth | top | held-out shrink % | stack | stack shrink % | ranking (top 4) | indistinguishable from top | notes |\n|---|---|---|---|---|---|---|---|");
@@ -163,15 +189,29 @@ fn withheld_effect_suite() {
             c.shrink,
             c.stack.join(" + "),
             c.stack_shrink,
-            c.ranking.iter().take(4).cloned().collect::<Vec<_>>().join(", "),
+            c.ranking
+                .iter()
+                .take(4)
+                .cloned()
+                .collect::<Vec<_>>()
+                .join(", "),
             c.indistinct_from_top.join(", "),
             c.notes
         );
     }
-    let pair_found =
-        pair_cases.iter().filter(|c| c.truth.iter().all(|e| c.stack.iter().any(|s| s == e.name()))).count();
-    let _ =
-        writeln!(rep, "\nTwo-effect cases with both effects in the greedy stack: {pair_found}/{}.", pair_cases.len());
+    let pair_found = pair_cases
+        .iter()
+        .filter(|c| {
+            c.truth
+                .iter()
+                .all(|e| c.stack.iter().any(|s| s == e.name()))
+        })
+        .count();
+    let _ = writeln!(
+        rep,
+        "\nTwo-effect cases with both effects in the greedy stack: {pair_found}/{}.",
+        pair_cases.len()
+    );
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("report.md"), &rep).unwrap();
@@ -190,8 +230,18 @@ fn withheld_effect_suite() {
         "wall_s": t0.elapsed().as_secs_f64(),
         "suite_seed": base_seed(),
     });
-    std::fs::write(dir.join("suite.json"), serde_json::to_string_pretty(&figures).unwrap()).unwrap();
+    std::fs::write(
+        dir.join("suite.json"),
+        serde_json::to_string_pretty(&figures).unwrap(),
+    )
+    .unwrap();
     println!("{rep}");
-    assert!(rate >= 90.0, "true effect first in {rate:.1} % of single-effect cases (< 90 %)");
-    assert!(mean_shrink >= 70.0, "mean held-out gap shrink {mean_shrink:.1} % (< 70 %)");
+    assert!(
+        rate >= 90.0,
+        "true effect first in {rate:.1} % of single-effect cases (< 90 %)"
+    );
+    assert!(
+        mean_shrink >= 70.0,
+        "mean held-out gap shrink {mean_shrink:.1} % (< 70 %)"
+    );
 }

@@ -22,15 +22,31 @@ pub struct Converted {
 }
 
 pub fn convert(path: &Path) -> Result<Converted> {
-    let mut rdr = csv::Reader::from_path(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut rdr =
+        csv::Reader::from_path(path).with_context(|| format!("reading {}", path.display()))?;
     let h: Vec<String> = rdr.headers()?.iter().map(str::to_string).collect();
     let idx = |name: &str| {
-        h.iter().position(|x| x == name).with_context(|| format!("{}: no `{name}` column", path.display()))
+        h.iter()
+            .position(|x| x == name)
+            .with_context(|| format!("{}: no `{name}` column", path.display()))
     };
-    let (i_sp, i_pe, i_cur, i_load, i_run, i_t) =
-        (idx("set_point")?, idx("position_error")?, idx("current")?, idx("load")?, idx("run")?, idx("time")?);
+    let (i_sp, i_pe, i_cur, i_load, i_run, i_t) = (
+        idx("set_point")?,
+        idx("position_error")?,
+        idx("current")?,
+        idx("load")?,
+        idx("run")?,
+        idx("time")?,
+    );
     let mut cols: BTreeMap<String, Vec<f64>> = BTreeMap::new();
-    for k in ["time_s", "run", "position_reference_m", "terminal_position_m", "current_q_a", "load_force_n"] {
+    for k in [
+        "time_s",
+        "run",
+        "position_reference_m",
+        "terminal_position_m",
+        "current_q_a",
+        "load_force_n",
+    ] {
         cols.insert(k.into(), Vec::new());
     }
     let mut runs: Vec<(f64, u32)> = Vec::new();
@@ -39,8 +55,19 @@ pub fn convert(path: &Path) -> Result<Converted> {
     let mut restarts = 0usize;
     for (r, rec) in rdr.records().enumerate() {
         let rec = rec.with_context(|| format!("{}: data row {}", path.display(), r + 1))?;
-        let num = |k: usize| rec.get(k).and_then(|s| s.trim().parse::<f64>().ok()).unwrap_or(f64::NAN);
-        let (sp, pe, cur, load, run, t) = (num(i_sp), num(i_pe), num(i_cur), num(i_load), num(i_run), num(i_t));
+        let num = |k: usize| {
+            rec.get(k)
+                .and_then(|s| s.trim().parse::<f64>().ok())
+                .unwrap_or(f64::NAN)
+        };
+        let (sp, pe, cur, load, run, t) = (
+            num(i_sp),
+            num(i_pe),
+            num(i_cur),
+            num(i_load),
+            num(i_run),
+            num(i_t),
+        );
         let key = (load, run as u32);
         if last_key != Some(key) {
             offset = 0.0;
@@ -66,8 +93,12 @@ pub fn convert(path: &Path) -> Result<Converted> {
         last_t = t;
         cols.get_mut("time_s").unwrap().push(t + offset);
         cols.get_mut("run").unwrap().push(run_idx as f64);
-        cols.get_mut("position_reference_m").unwrap().push(sp * 1e-3);
-        cols.get_mut("terminal_position_m").unwrap().push((sp - pe) * 1e-3);
+        cols.get_mut("position_reference_m")
+            .unwrap()
+            .push(sp * 1e-3);
+        cols.get_mut("terminal_position_m")
+            .unwrap()
+            .push((sp - pe) * 1e-3);
         cols.get_mut("current_q_a").unwrap().push(cur);
         cols.get_mut("load_force_n").unwrap().push(load * KGF_N);
     }

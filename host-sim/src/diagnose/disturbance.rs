@@ -13,9 +13,9 @@
 //! Change points are located on the held-out residual itself (their times
 //! are what the effect reports); that leaks their positions, not levels.
 
+use super::effects::{Effect, MAXP};
 use super::events::{self, Remainder};
 use super::figures::shrink;
-use super::effects::{Effect, MAXP};
 use super::fit::ChannelPred;
 use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE};
 
@@ -155,9 +155,12 @@ fn sg_smooth(y: &[f64], m: usize) -> Vec<f64> {
     }
     let mf = m as f64;
     let s2 = mf * (mf + 1.0) / 3.0;
-    let sq: f64 = (0..=2 * m).map(|j| ((j as f64 - mf).powi(2) - s2).powi(2)).sum();
-    let coef: Vec<f64> =
-        (0..=2 * m).map(|j| 1.0 / (2.0 * mf + 1.0) - ((j as f64 - mf).powi(2) - s2) * s2 / sq).collect();
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let coef: Vec<f64> = (0..=2 * m)
+        .map(|j| 1.0 / (2.0 * mf + 1.0) - ((j as f64 - mf).powi(2) - s2) * s2 / sq)
+        .collect();
     let mut out = y.to_vec();
     for (i, o) in out.iter_mut().enumerate().take(n - m).skip(m) {
         *o = coef.iter().zip(&y[i - m..=i + m]).map(|(a, b)| a * b).sum();
@@ -206,11 +209,20 @@ fn cv_levels(
     let parity = |a: usize, i: usize| ((i - a) / b) % 2;
     // Gains once per sample and channel.
     let g: Vec<Vec<f64>> = (0..NCH)
-        .map(|c| if chans.contains(&c) { (0..n).map(|i| gain(mode, s, i, c, nominal)).collect() } else { Vec::new() })
+        .map(|c| {
+            if chans.contains(&c) {
+                (0..n).map(|i| gain(mode, s, i, c, nominal)).collect()
+            } else {
+                Vec::new()
+            }
+        })
         .collect();
     // Level signals per parity: per channel (PerChannel) or one force
     // (stored under every channel).
-    let mut sig = [[vec![0.0; n], vec![0.0; n], vec![0.0; n]], [vec![0.0; n], vec![0.0; n], vec![0.0; n]]];
+    let mut sig = [
+        [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+        [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+    ];
     let mut levels = Vec::new();
     let mut steps = Vec::new();
     let mut last: Option<[(f64, f64); NCH]> = None;
@@ -258,7 +270,10 @@ fn cv_levels(
         let whole: [(f64, f64); NCH] = std::array::from_fn(|c| {
             let (nu, de) = match mode {
                 Levels::PerChannel => (num[0][c] + num[1][c], den[0][c] + den[1][c]),
-                Levels::Force => (num[0].iter().chain(&num[1]).sum(), den[0].iter().chain(&den[1]).sum()),
+                Levels::Force => (
+                    num[0].iter().chain(&num[1]).sum(),
+                    den[0].iter().chain(&den[1]).sum(),
+                ),
             };
             (if de > 0.0 { nu / de } else { 0.0 }, de)
         });
@@ -359,7 +374,10 @@ pub fn predict(
     w: &[f64; NCH],
 ) -> (Remainder, Vec<Steps>, Vec<f64>) {
     let cps = events::detect_floor(segs, rem, k, [0.0, DETECT_WEIGHT_FLOOR]);
-    let chans: Vec<usize> = [TORQUE, POSITION].into_iter().filter(|c| use_ch[*c]).collect();
+    let chans: Vec<usize> = [TORQUE, POSITION]
+        .into_iter()
+        .filter(|c| use_ch[*c])
+        .collect();
     let mut levels = Vec::new();
     let mut steps = Vec::new();
     let pred = segs
@@ -370,7 +388,11 @@ pub fn predict(
             let (p, lv, st) = cv_levels(s, r, &chans, cp, mode, nominal, w);
             levels.extend(lv.iter().map(|l| l.1));
             // Change points with no channel in use still count (zero weight).
-            steps.push(if chans.is_empty() { cp.iter().map(|i| (*i, 0.0)).collect() } else { st });
+            steps.push(if chans.is_empty() {
+                cp.iter().map(|i| (*i, 0.0)).collect()
+            } else {
+                st
+            });
             p
         })
         .collect();
@@ -413,15 +435,26 @@ pub fn fit(
         .map(|(m, k)| {
             let p = predict(train, rem_train, k, &all_ch, m, nominal, w).0;
             let use_ch: [bool; NCH] = std::array::from_fn(|c| {
-                shrink(gap(train, rem_train, None, &one(c)), gap(train, rem_train, Some(&p), &one(c))) >= CHANNEL_MIN_PCT
+                shrink(
+                    gap(train, rem_train, None, &one(c)),
+                    gap(train, rem_train, Some(&p), &one(c)),
+                ) >= CHANNEL_MIN_PCT
             });
-            let g = gap(train, rem_train, Some(&predict(train, rem_train, k, &use_ch, m, nominal, w).0), w);
+            let g = gap(
+                train,
+                rem_train,
+                Some(&predict(train, rem_train, k, &use_ch, m, nominal, w).0),
+                w,
+            );
             (m, k, use_ch, g)
         })
         .min_by(|a, b| a.3.total_cmp(&b.3))
         .unwrap_or((Levels::PerChannel, events::STEP_SIGMA, [false; NCH], base_t));
     let (pred, steps, levels) = predict(held, rem_held, k, &use_ch, mode, nominal, w);
-    let cps: Vec<Vec<usize>> = steps.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
+    let cps: Vec<Vec<usize>> = steps
+        .iter()
+        .map(|v| v.iter().map(|x| x.0).collect())
+        .collect();
     let (lk, ch) = events::locked_share(held, &steps, &events::signal_events(held), LOCK_TOL_S);
     let g_stack = gap(held, rem_held, None, w);
     let g = gap(held, rem_held, Some(&pred), w);
@@ -429,7 +462,10 @@ pub fn fit(
     let gp = gap(held, rem_held, Some(&pred), &wp);
     let gp_stack = gap(held, rem_held, None, &wp);
     let (scale, unit) = match (nominal, mode) {
-        (Nominal::Physics(_), Levels::Force) => (1.0, "N (force at the nut, from the torque and position channels)"),
+        (Nominal::Physics(_), Levels::Force) => (
+            1.0,
+            "N (force at the nut, from the torque and position channels)",
+        ),
         (Nominal::Physics(p), _) => (1.0 / p.k, "N (force at the nut, from the torque channel)"),
         (Nominal::Regression(_), _) => (1.0, "A (logged current: an input disturbance)"),
     };

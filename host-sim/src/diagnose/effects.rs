@@ -3,7 +3,9 @@
 //! (optional) shape parameter is fixed from a grid: `regressors` gives, for
 //! every parameter, its contribution to each residual channel at a sample.
 
-use super::residual::{backlash_grid_m, sg_smooth_gain, Nominal, Segment, NCH, POSITION, TORQUE, VOLTAGE};
+use super::residual::{
+    backlash_grid_m, sg_smooth_gain, Nominal, Segment, NCH, POSITION, TORQUE, VOLTAGE,
+};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -146,9 +148,10 @@ impl Effect {
         match (self, nominal) {
             (Effect::Backlash, Nominal::Physics(_)) => None,
             // The rod's speed, m/s (0.4 mm/s … 40 mm/s).
-            (Effect::Stribeck, Nominal::Regression(_)) => {
-                Some(("stribeck_speed_m_s", (0..=24).map(|k| 4e-4 * 1.2f64.powi(k)).collect()))
-            }
+            (Effect::Stribeck, Nominal::Regression(_)) => Some((
+                "stribeck_speed_m_s",
+                (0..=24).map(|k| 4e-4 * 1.2f64.powi(k)).collect(),
+            )),
             _ => self.grid(),
         }
     }
@@ -156,7 +159,10 @@ impl Effect {
     /// Shape parameter on a grid, if any.
     pub fn grid(self) -> Option<(&'static str, Vec<f64>)> {
         match self {
-            Effect::Stribeck => Some(("stribeck_speed_rad_s", (0..=24).map(|k| 0.5 * 1.2f64.powi(k)).collect())),
+            Effect::Stribeck => Some((
+                "stribeck_speed_rad_s",
+                (0..=24).map(|k| 0.5 * 1.2f64.powi(k)).collect(),
+            )),
             Effect::Backlash => Some(("play_shape_m", backlash_grid_m())),
             Effect::Cogging => Some(("periods_per_rev", (2..=72).map(f64::from).collect())),
             _ => None,
@@ -166,9 +172,11 @@ impl Effect {
     /// Channels the effect shows in.
     pub fn channels(self) -> &'static [usize] {
         match self {
-            Effect::CoulombAsym | Effect::ViscousAsym | Effect::Stribeck | Effect::Cogging | Effect::CurrentSensor => {
-                &[TORQUE]
-            }
+            Effect::CoulombAsym
+            | Effect::ViscousAsym
+            | Effect::Stribeck
+            | Effect::Cogging
+            | Effect::CurrentSensor => &[TORQUE],
             Effect::LoadOffset | Effect::EncoderEccentricity => &[TORQUE, POSITION],
             Effect::DeadTime => &[VOLTAGE],
             _ => &[POSITION],
@@ -180,14 +188,19 @@ impl Effect {
         let phys = matches!(nominal, Nominal::Physics(_));
         // Once per revolution needs a revolution: without an encoder a
         // regression nominal has no lead to turn the rod travel into turns.
-        let needs_encoder = matches!(self, Effect::Cogging | Effect::EncoderEccentricity | Effect::CurrentSensor)
-            || (self == Effect::LeadErrorPerRev && !phys);
+        let needs_encoder = matches!(
+            self,
+            Effect::Cogging | Effect::EncoderEccentricity | Effect::CurrentSensor
+        ) || (self == Effect::LeadErrorPerRev && !phys);
         if needs_encoder && !seg.encoder {
             return Some("needs the motor angle (encoder) in the log".into());
         }
         let needs_phys = matches!(
             self,
-            Effect::EncoderEccentricity | Effect::CouplingCompliance | Effect::CurrentSensor | Effect::DeadTime
+            Effect::EncoderEccentricity
+                | Effect::CouplingCompliance
+                | Effect::CurrentSensor
+                | Effect::DeadTime
         );
         if needs_phys && !phys {
             return Some(
@@ -196,14 +209,27 @@ impl Effect {
         }
         let chans = self.channels();
         if chans.iter().all(|c| seg.r[*c].is_none()) {
-            let names: Vec<&str> = chans.iter().map(|c| super::residual::CHANNELS[*c]).collect();
-            return Some(format!("the {} residual is not available from the logged columns", names.join("/")));
+            let names: Vec<&str> = chans
+                .iter()
+                .map(|c| super::residual::CHANNELS[*c])
+                .collect();
+            return Some(format!(
+                "the {} residual is not available from the logged columns",
+                names.join("/")
+            ));
         }
         None
     }
 
     /// Regressor values of every parameter on every channel at sample i.
-    pub fn regressors(self, hyper: f64, seg: &Segment, i: usize, nominal: &Nominal, out: &mut [[f64; NCH]; MAXP]) {
+    pub fn regressors(
+        self,
+        hyper: f64,
+        seg: &Segment,
+        i: usize,
+        nominal: &Nominal,
+        out: &mut [[f64; NCH]; MAXP],
+    ) {
         *out = [[0.0; NCH]; MAXP];
         let (om, th) = (seg.omega[i], seg.theta[i]);
         let sgn = match nominal {
@@ -221,19 +247,30 @@ impl Effect {
                 out[1][TORQUE] = sgn.min(0.0);
             }
             Effect::ViscousAsym => {
-                let w = if matches!(nominal, Nominal::Physics(_)) { om } else { seg.v[i] };
+                let w = if matches!(nominal, Nominal::Physics(_)) {
+                    om
+                } else {
+                    seg.v[i]
+                };
                 out[0][TORQUE] = w.max(0.0);
                 out[1][TORQUE] = w.min(0.0);
             }
             Effect::Stribeck => {
-                let w = if matches!(nominal, Nominal::Physics(_)) { om } else { seg.v[i] };
+                let w = if matches!(nominal, Nominal::Physics(_)) {
+                    om
+                } else {
+                    seg.v[i]
+                };
                 out[0][TORQUE] = (-(w / hyper).powi(2)).exp() * sgn;
             }
             Effect::Backlash => {
                 out[0][POSITION] = match nominal {
                     Nominal::Physics(_) => seg.flank.get(i).copied().unwrap_or(-0.5 * seg.dir[i]),
                     Nominal::Regression(_) => {
-                        let k = backlash_grid_m().iter().position(|b| *b == hyper).unwrap_or(0);
+                        let k = backlash_grid_m()
+                            .iter()
+                            .position(|b| *b == hyper)
+                            .unwrap_or(0);
                         seg.play.get(k).map_or(-0.5 * seg.dir[i], |p| p[i])
                     }
                 };
@@ -244,10 +281,12 @@ impl Effect {
                     Nominal::Physics(p) => p.contact_preload_n,
                     Nominal::Regression(_) => 500.0,
                 };
-                out[0][POSITION] = -f.signum() * ((f.abs() + fp).powf(2.0 / 3.0) - fp.powf(2.0 / 3.0));
+                out[0][POSITION] =
+                    -f.signum() * ((f.abs() + fp).powf(2.0 / 3.0) - fp.powf(2.0 / 3.0));
             }
             Effect::CouplingCompliance => {
-                let t_shaft = seg.y[TORQUE].as_ref().map_or(0.0, |y| y[i]) - j_eq_rot(nominal) * seg.alpha[i];
+                let t_shaft =
+                    seg.y[TORQUE].as_ref().map_or(0.0, |y| y[i]) - j_eq_rot(nominal) * seg.alpha[i];
                 out[0][POSITION] = -k * t_shaft;
             }
             Effect::LeadErrorCumulative => {
@@ -297,7 +336,12 @@ impl Effect {
                         let r = om * om * seg.c_loc[i] * p.m_moving;
                         let z = p.rod_damping_ratio(seg.c_loc[i]);
                         let h = (1.0 - r) / ((1.0 - r).powi(2) + 4.0 * z * z * r);
-                        (p.j_rot, p.m_moving * p.k * p.k, seg.c_loc[i] * p.m_moving * p.k, h)
+                        (
+                            p.j_rot,
+                            p.m_moving * p.k * p.k,
+                            seg.c_loc[i] * p.m_moving * p.k,
+                            h,
+                        )
                     }
                     Nominal::Regression(_) => (j_eq, 0.0, 0.0, 1.0),
                 };

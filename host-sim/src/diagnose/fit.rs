@@ -26,7 +26,11 @@ pub fn channel_weights(train: &[&Segment]) -> [f64; NCH] {
         let (mut ss, mut n) = (0.0, 0usize);
         for s in train {
             if let Some(r) = &s.r[c] {
-                ss += r.iter().enumerate().map(|(i, x)| (s.weight(c, i) * x).powi(2)).sum::<f64>();
+                ss += r
+                    .iter()
+                    .enumerate()
+                    .map(|(i, x)| (s.weight(c, i) * x).powi(2))
+                    .sum::<f64>();
                 n += r.len();
             }
         }
@@ -86,10 +90,16 @@ pub fn solve(terms: &[Term], segs: &[&Segment], nominal: &Nominal, w: &[f64; NCH
             }
         }
     }
-    let names: Vec<&str> = terms.iter().flat_map(|t| t.effect.params().iter().copied()).collect();
+    let names: Vec<&str> = terms
+        .iter()
+        .flat_map(|t| t.effect.params().iter().copied())
+        .collect();
     let d: Vec<f64> = (0..p).map(|a| ata[(a, a)]).collect();
     if let Some(a) = (0..p).find(|&a| d[a].is_nan() || d[a] <= 0.0 || !d[a].is_finite()) {
-        return Solved::Failed(format!("parameter `{}` is not excited by the data (its regressor is zero)", names[a]));
+        return Solved::Failed(format!(
+            "parameter `{}` is not excited by the data (its regressor is zero)",
+            names[a]
+        ));
     }
     let mut norm = ata.clone();
     for a in 0..p {
@@ -98,9 +108,14 @@ pub fn solve(terms: &[Term], segs: &[&Segment], nominal: &Nominal, w: &[f64; NCH
         }
     }
     let eig = norm.clone().symmetric_eigen().eigenvalues;
-    let (lo, hi) = eig.iter().fold((f64::INFINITY, 0.0f64), |(l, h), e| (l.min(*e), h.max(*e)));
+    let (lo, hi) = eig
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), e| (l.min(*e), h.max(*e)));
     if lo <= 1e-9 * hi {
-        return Solved::Failed(format!("ill-conditioned least squares (normalised eigenvalue ratio {:.1e})", lo / hi));
+        return Solved::Failed(format!(
+            "ill-conditioned least squares (normalised eigenvalue ratio {:.1e})",
+            lo / hi
+        ));
     }
     match ata.cholesky() {
         Some(ch) => {
@@ -117,7 +132,8 @@ pub fn solve(terms: &[Term], segs: &[&Segment], nominal: &Nominal, w: &[f64; NCH
 
 /// The terms' prediction on every channel of a segment.
 pub fn predict(terms: &[Term], params: &[f64], seg: &Segment, nominal: &Nominal) -> ChannelPred {
-    let mut out: ChannelPred = std::array::from_fn(|c| seg.r[c].as_ref().map(|_| vec![0.0; seg.len()]));
+    let mut out: ChannelPred =
+        std::array::from_fn(|c| seg.r[c].as_ref().map(|_| vec![0.0; seg.len()]));
     let mut phi = Vec::new();
     for i in 0..seg.len() {
         row(terms, seg, i, nominal, &mut phi);
@@ -169,7 +185,9 @@ pub fn fit_pct(segs: &[&Segment], pred: Option<&[ChannelPred]>) -> [Option<f64>;
         }
         my /= n as f64;
         for (k, s) in segs.iter().enumerate() {
-            let (Some(y), Some(r)) = (&s.y[c], &s.r[c]) else { continue };
+            let (Some(y), Some(r)) = (&s.y[c], &s.r[c]) else {
+                continue;
+            };
             let p = pred.and_then(|p| p[k][c].as_ref());
             for i in 0..y.len() {
                 sr += (r[i] - p.map_or(0.0, |p| p[i])).powi(2);
@@ -187,7 +205,12 @@ pub struct EffectFit {
     pub train_gap: f64,
 }
 
-pub fn fit_effect(effect: Effect, train: &[&Segment], nominal: &Nominal, w: &[f64; NCH]) -> Result<EffectFit, String> {
+pub fn fit_effect(
+    effect: Effect,
+    train: &[&Segment],
+    nominal: &Nominal,
+    w: &[f64; NCH],
+) -> Result<EffectFit, String> {
     let grid = effect.grid_for(nominal).map_or(vec![0.0], |g| g.1);
     let mut best: Option<(usize, EffectFit)> = None;
     let mut last_err = String::new();
@@ -195,10 +218,20 @@ pub fn fit_effect(effect: Effect, train: &[&Segment], nominal: &Nominal, w: &[f6
         let terms = vec![Term { effect, hyper: *h }];
         match solve(&terms, train, nominal, w) {
             Solved::Ok(params) => {
-                let pred: Vec<_> = train.iter().map(|s| predict(&terms, &params, s, nominal)).collect();
+                let pred: Vec<_> = train
+                    .iter()
+                    .map(|s| predict(&terms, &params, s, nominal))
+                    .collect();
                 let g = gap(train, Some(&pred), w);
                 if best.as_ref().is_none_or(|(_, b)| g < b.train_gap) {
-                    best = Some((gi, EffectFit { terms, params, train_gap: g }));
+                    best = Some((
+                        gi,
+                        EffectFit {
+                            terms,
+                            params,
+                            train_gap: g,
+                        },
+                    ));
                 }
             }
             Solved::Failed(e) => last_err = e,
@@ -208,15 +241,24 @@ pub fn fit_effect(effect: Effect, train: &[&Segment], nominal: &Nominal, w: &[f6
         None => Err(last_err),
         Some((gi, fit)) => {
             if effect == Effect::Backlash && fit.params[0] < 0.0 {
-                Err(format!("fitted lost motion {:.3e} m is negative (unphysical)", fit.params[0]))
+                Err(format!(
+                    "fitted lost motion {:.3e} m is negative (unphysical)",
+                    fit.params[0]
+                ))
             } else if effect == Effect::Stribeck && fit.params[0] < 0.0 {
                 // Breakaway friction exceeds the sliding one by definition;
                 // less friction at low speed than the nominal is not this
                 // effect (it is what smoothing the onset of motion leaves).
-                Err(format!("fitted Stribeck torque {:.3e} N·m is negative (unphysical)", fit.params[0]))
+                Err(format!(
+                    "fitted Stribeck torque {:.3e} N·m is negative (unphysical)",
+                    fit.params[0]
+                ))
             } else if grid.len() > 2 && (gi == 0 || gi == grid.len() - 1) {
                 let (name, _) = effect.grid_for(nominal).expect("grid");
-                Err(format!("shape parameter `{name}` optimum {} at the grid edge", grid[gi]))
+                Err(format!(
+                    "shape parameter `{name}` optimum {} at the grid edge",
+                    grid[gi]
+                ))
             } else {
                 Ok(fit)
             }
@@ -254,12 +296,22 @@ pub fn unexcited(
         e.iter().map(|x| x / n.max(1) as f64).collect::<Vec<_>>()
     };
     let (et, eh) = (energy(train), energy(held));
-    let names: Vec<&str> = terms.iter().flat_map(|t| t.effect.params().iter().copied()).collect();
-    (0..p).find(|&a| et[a] < 0.01 * eh[a]).map(|a| names[a].to_string())
+    let names: Vec<&str> = terms
+        .iter()
+        .flat_map(|t| t.effect.params().iter().copied())
+        .collect();
+    (0..p)
+        .find(|&a| et[a] < 0.01 * eh[a])
+        .map(|a| names[a].to_string())
 }
 
 /// Joint fit of several terms (shape parameters fixed).
-pub fn fit_terms(terms: &[Term], train: &[&Segment], nominal: &Nominal, w: &[f64; NCH]) -> Result<Vec<f64>, String> {
+pub fn fit_terms(
+    terms: &[Term],
+    train: &[&Segment],
+    nominal: &Nominal,
+    w: &[f64; NCH],
+) -> Result<Vec<f64>, String> {
     match solve(terms, train, nominal, w) {
         Solved::Ok(p) => Ok(p),
         Solved::Failed(e) => Err(e),

@@ -50,17 +50,29 @@ pub fn same_data(a: &Log, b: &Log) -> bool {
     if a.len() != b.len() || a.is_empty() {
         return false;
     }
-    let common: Vec<&String> = a.columns.keys().filter(|k| b.columns.contains_key(*k)).collect();
+    let common: Vec<&String> = a
+        .columns
+        .keys()
+        .filter(|k| b.columns.contains_key(*k))
+        .collect();
     common.len() >= 2
         && common.iter().all(|k| {
-            a.columns[*k].iter().zip(&b.columns[*k]).all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(y.abs()).max(1e-300) || (x.is_nan() && y.is_nan()))
+            a.columns[*k].iter().zip(&b.columns[*k]).all(|(x, y)| {
+                (x - y).abs() <= 1e-12 * x.abs().max(y.abs()).max(1e-300)
+                    || (x.is_nan() && y.is_nan())
+            })
         })
 }
 
 /// Identity gates between training, held-out and reference logs.
 pub fn identity(log: &Log, heldout: Option<&Log>, reference: Option<&Log>) -> Vec<Gate> {
     let mut out = Vec::new();
-    let g = |kind: &str, message: String| Gate { kind: kind.into(), channel: None, message, figure: 1.0 };
+    let g = |kind: &str, message: String| Gate {
+        kind: kind.into(),
+        channel: None,
+        message,
+        figure: 1.0,
+    };
     if let Some(h) = heldout {
         if same_data(log, h) {
             out.push(g("heldout_is_training", format!(
@@ -100,7 +112,9 @@ pub fn fit_gates(
 ) -> Vec<Gate> {
     let mut out = Vec::new();
     for c in 0..NCH {
-        let (Some(ft), Some(fh)) = (fit_train[c], fit_held[c]) else { continue };
+        let (Some(ft), Some(fh)) = (fit_train[c], fit_held[c]) else {
+            continue;
+        };
         if ft < NOMINAL_FIT_MIN_PCT[c] {
             out.push(Gate {
                 kind: "nominal_poor_fit".into(),
@@ -156,8 +170,11 @@ pub fn fit_gates(
             }
         }
     }
-    let implausible: Vec<String> =
-        not_ranked.iter().filter(|n| n.status == "implausible").map(|n| format!("{} ({})", n.effect, n.reason)).collect();
+    let implausible: Vec<String> = not_ranked
+        .iter()
+        .filter(|n| n.status == "implausible")
+        .map(|n| format!("{} ({})", n.effect, n.reason))
+        .collect();
     if implausible.len() >= IMPLAUSIBLE_FITS_MISMATCH {
         out.push(Gate {
             kind: "implausible_fits".into(),

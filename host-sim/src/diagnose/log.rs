@@ -20,40 +20,90 @@ pub struct Column {
 }
 
 pub const SCHEMA: &[Column] = &[
-    Column { name: "time_s", unit: "s", meaning: "sample time, increasing within a run", range: (-1.0, 1.0e6) },
-    Column { name: "run", unit: "-", meaning: "run number (integer); time restarts per run", range: (0.0, 1.0e6) },
-    Column { name: "position_reference_m", unit: "m", meaning: "trajectory position reference", range: (-2.0, 2.0) },
+    Column {
+        name: "time_s",
+        unit: "s",
+        meaning: "sample time, increasing within a run",
+        range: (-1.0, 1.0e6),
+    },
+    Column {
+        name: "run",
+        unit: "-",
+        meaning: "run number (integer); time restarts per run",
+        range: (0.0, 1.0e6),
+    },
+    Column {
+        name: "position_reference_m",
+        unit: "m",
+        meaning: "trajectory position reference",
+        range: (-2.0, 2.0),
+    },
     Column {
         name: "motor_angle_rad",
         unit: "rad",
         meaning: "multi-turn mechanical motor angle (encoder)",
         range: (-1.0e4, 1.0e4),
     },
-    Column { name: "terminal_position_m", unit: "m", meaning: "linear-scale (rod) position", range: (-2.0, 2.0) },
+    Column {
+        name: "terminal_position_m",
+        unit: "m",
+        meaning: "linear-scale (rod) position",
+        range: (-2.0, 2.0),
+    },
     Column {
         name: "current_q_a",
         unit: "A",
         meaning: "q-axis current (or the motor current of a non-FOC drive)",
         range: (-500.0, 500.0),
     },
-    Column { name: "current_d_a", unit: "A", meaning: "d-axis current", range: (-500.0, 500.0) },
+    Column {
+        name: "current_d_a",
+        unit: "A",
+        meaning: "d-axis current",
+        range: (-500.0, 500.0),
+    },
     Column {
         name: "current_a_a",
         unit: "A",
         meaning: "phase a current (with b, c: Park-transformed to d-q)",
         range: (-500.0, 500.0),
     },
-    Column { name: "current_b_a", unit: "A", meaning: "phase b current", range: (-500.0, 500.0) },
-    Column { name: "current_c_a", unit: "A", meaning: "phase c current", range: (-500.0, 500.0) },
-    Column { name: "voltage_q_v", unit: "V", meaning: "q-axis voltage command", range: (-1000.0, 1000.0) },
-    Column { name: "bus_voltage_v", unit: "V", meaning: "DC bus voltage", range: (0.0, 1000.0) },
+    Column {
+        name: "current_b_a",
+        unit: "A",
+        meaning: "phase b current",
+        range: (-500.0, 500.0),
+    },
+    Column {
+        name: "current_c_a",
+        unit: "A",
+        meaning: "phase c current",
+        range: (-500.0, 500.0),
+    },
+    Column {
+        name: "voltage_q_v",
+        unit: "V",
+        meaning: "q-axis voltage command",
+        range: (-1000.0, 1000.0),
+    },
+    Column {
+        name: "bus_voltage_v",
+        unit: "V",
+        meaning: "DC bus voltage",
+        range: (0.0, 1000.0),
+    },
     Column {
         name: "load_force_n",
         unit: "N",
         meaning: "external axial force on the rod, + opposes extension (excl. gravity)",
         range: (-1.0e5, 1.0e5),
     },
-    Column { name: "tilt_deg", unit: "deg", meaning: "cylinder tilt from horizontal", range: (-180.0, 180.0) },
+    Column {
+        name: "tilt_deg",
+        unit: "deg",
+        meaning: "cylinder tilt from horizontal",
+        range: (-180.0, 180.0),
+    },
 ];
 
 /// A problem in the input, with its 1-based data row (the header is row 0).
@@ -120,11 +170,21 @@ impl Log {
 
     /// Builds a log from columns (tests, converters); validates it.
     pub fn from_columns(source: &str, columns: BTreeMap<String, Vec<f64>>) -> Result<Log> {
-        let n = columns.get("time_s").ok_or_else(|| anyhow!("{source}: no `time_s` column"))?.len();
+        let n = columns
+            .get("time_s")
+            .ok_or_else(|| anyhow!("{source}: no `time_s` column"))?
+            .len();
         if let Some((k, v)) = columns.iter().find(|(_, v)| v.len() != n) {
-            bail!("{source}: column `{k}` has {} values, `time_s` {n}", v.len());
+            bail!(
+                "{source}: column `{k}` has {} values, `time_s` {n}",
+                v.len()
+            );
         }
-        let mut log = Log { source: source.to_string(), columns, issues: Vec::new() };
+        let mut log = Log {
+            source: source.to_string(),
+            columns,
+            issues: Vec::new(),
+        };
         log.validate();
         Ok(log)
     }
@@ -151,7 +211,8 @@ impl Log {
                 });
             }
         }
-        let mut columns: BTreeMap<String, Vec<f64>> = keep.iter().map(|(_, h)| (h.clone(), Vec::new())).collect();
+        let mut columns: BTreeMap<String, Vec<f64>> =
+            keep.iter().map(|(_, h)| (h.clone(), Vec::new())).collect();
         for (r, rec) in rdr.records().enumerate() {
             let rec = rec.with_context(|| format!("{}: data row {}", path.display(), r + 1))?;
             for (k, h) in &keep {
@@ -176,7 +237,8 @@ impl Log {
 
     /// Writes the log in the schema.
     pub fn write_csv(&self, path: &Path) -> Result<()> {
-        let mut w = csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
+        let mut w =
+            csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
         let names: Vec<&String> = self.columns.keys().collect();
         w.write_record(names.iter().map(|s| s.as_str()))?;
         for i in 0..self.len() {
@@ -191,14 +253,23 @@ impl Log {
         let n = self.len();
         let mut issues = Vec::new();
         for col in SCHEMA {
-            let Some(v) = self.columns.get(col.name) else { continue };
+            let Some(v) = self.columns.get(col.name) else {
+                continue;
+            };
             let mut bad = 0;
             for (i, x) in v.iter().enumerate() {
                 let msg = if x.is_nan() {
                     Some("NaN or empty".to_string())
                 } else if !x.is_finite() || *x < col.range.0 || *x > col.range.1 {
-                    let hint = if col.unit == "m" { " (mm given as m?)" } else { "" };
-                    Some(format!("{x} {} outside the plausible range {:?}{hint}", col.unit, col.range))
+                    let hint = if col.unit == "m" {
+                        " (mm given as m?)"
+                    } else {
+                        ""
+                    };
+                    Some(format!(
+                        "{x} {} outside the plausible range {:?}{hint}",
+                        col.unit, col.range
+                    ))
                 } else {
                     None
                 };
@@ -226,7 +297,11 @@ impl Log {
         let t = &self.columns["time_s"];
         let run = self.columns.get("run");
         let same_run = |i: usize| run.is_none_or(|r| r[i] == r[i - 1]);
-        let mut dts: Vec<f64> = (1..n).filter(|&i| same_run(i)).map(|i| t[i] - t[i - 1]).filter(|d| *d > 0.0).collect();
+        let mut dts: Vec<f64> = (1..n)
+            .filter(|&i| same_run(i))
+            .map(|i| t[i] - t[i - 1])
+            .filter(|d| *d > 0.0)
+            .collect();
         dts.sort_by(f64::total_cmp);
         let median = dts.get(dts.len() / 2).copied().unwrap_or(0.0);
         let mut listed = 0;
@@ -236,17 +311,35 @@ impl Log {
             }
             let dt = t[i] - t[i - 1];
             let (severity, message) = if dt == 0.0 {
-                (Severity::Error, format!("duplicate timestamp {} s (same as row {i})", t[i]))
+                (
+                    Severity::Error,
+                    format!("duplicate timestamp {} s (same as row {i})", t[i]),
+                )
             } else if dt < 0.0 {
-                (Severity::Error, format!("time goes back from {} s to {} s (unsorted)", t[i - 1], t[i]))
+                (
+                    Severity::Error,
+                    format!(
+                        "time goes back from {} s to {} s (unsorted)",
+                        t[i - 1],
+                        t[i]
+                    ),
+                )
             } else if median > 0.0 && dt > 1.5 * median {
-                (Severity::Warning, format!("gap of {dt:.4} s (median step {median:.4} s); the run is split here"))
+                (
+                    Severity::Warning,
+                    format!("gap of {dt:.4} s (median step {median:.4} s); the run is split here"),
+                )
             } else {
                 continue;
             };
             listed += 1;
             if listed <= 50 {
-                issues.push(Issue { row: Some(i + 1), column: Some("time_s".into()), severity, message });
+                issues.push(Issue {
+                    row: Some(i + 1),
+                    column: Some("time_s".into()),
+                    severity,
+                    message,
+                });
             }
         }
         if listed > 50 {
@@ -274,7 +367,10 @@ impl Log {
         let mut out = Vec::new();
         let mut start = 0;
         for i in 1..=n {
-            let split = i == n || run.is_some_and(|r| r[i] != r[i - 1]) || gap_rows.contains(&i) || t[i] <= t[i - 1];
+            let split = i == n
+                || run.is_some_and(|r| r[i] != r[i - 1])
+                || gap_rows.contains(&i)
+                || t[i] <= t[i - 1];
             if split {
                 if i > start {
                     out.push((start, i));
@@ -299,7 +395,9 @@ impl Log {
             out.push("no terminal_position_m: the position residual and backlash, stiffness, contact, coupling, lead and thermal effects are ruled out".into());
         }
         if !self.has("voltage_q_v") {
-            out.push("no voltage_q_v: the voltage residual and inverter dead time are ruled out".into());
+            out.push(
+                "no voltage_q_v: the voltage residual and inverter dead time are ruled out".into(),
+            );
         }
         if !self.has("position_reference_m") {
             out.push(
@@ -402,7 +500,10 @@ pub fn parse_defmt(text: &str, source: &str) -> Result<Log> {
         let mut row = BTreeMap::new();
         for (k, v) in top_level_fields(&body[..end]) {
             if let Some((_, col)) = TLM_MAP.iter().find(|(f, _)| *f == k) {
-                let inner = v.strip_prefix("Some(").and_then(|s| s.strip_suffix(')')).unwrap_or(&v);
+                let inner = v
+                    .strip_prefix("Some(")
+                    .and_then(|s| s.strip_suffix(')'))
+                    .unwrap_or(&v);
                 if inner == "None" {
                     continue;
                 }
@@ -449,7 +550,10 @@ pub fn parse_defmt(text: &str, source: &str) -> Result<Log> {
     let columns = names
         .into_iter()
         .map(|n| {
-            let v = rows.iter().map(|r| r.get(&n).copied().unwrap_or(f64::NAN)).collect();
+            let v = rows
+                .iter()
+                .map(|r| r.get(&n).copied().unwrap_or(f64::NAN))
+                .collect();
             (n, v)
         })
         .collect();
@@ -469,10 +573,14 @@ pub fn parse_defmt(text: &str, source: &str) -> Result<Log> {
 
 /// Reads a log: `.csv` in the schema, anything else as defmt text.
 pub fn read_any(path: &Path) -> Result<Log> {
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+    {
         Log::read_csv(path)
     } else {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         parse_defmt(&text, &path.display().to_string())
     }
 }

@@ -33,8 +33,8 @@ use fit::Term;
 use log::{Log, Severity};
 use residual::{Nominal, Segment, CHANNELS, NCH};
 use std::collections::BTreeMap;
-pub use summary::{ChannelAnalysis, NotRanked, RankEntry, RegionComparison, Summary};
 use std::path::{Path, PathBuf};
+pub use summary::{ChannelAnalysis, NotRanked, RankEntry, RegionComparison, Summary};
 
 /// `host-sim diagnose` arguments.
 #[derive(clap::Args, Debug, Clone)]
@@ -85,7 +85,10 @@ pub fn read_log(path: &Path, format: &str) -> Result<Log> {
             .to_string();
         if head.contains("position_error") && head.contains("set_point") {
             "cranfield"
-        } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+        } else if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+        {
             "csv"
         } else {
             "defmt"
@@ -96,7 +99,8 @@ pub fn read_log(path: &Path, format: &str) -> Result<Log> {
     match fmt {
         "csv" => Log::read_csv(path),
         "defmt" => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
             log::parse_defmt(&text, &path.display().to_string())
         }
         "cranfield" => Ok(cranfield::convert(path)?.log),
@@ -132,11 +136,19 @@ impl Diagnosis {
         self.heldout()
             .iter()
             .map(|s| {
-                let p = self.stack.as_ref().map(|(t, q)| fit::predict(t, q, s, &self.nominal));
+                let p = self
+                    .stack
+                    .as_ref()
+                    .map(|(t, q)| fit::predict(t, q, s, &self.nominal));
                 std::array::from_fn(|c| {
                     let r = s.r[c].as_ref()?;
                     let pc = p.as_ref().and_then(|p| p[c].as_ref());
-                    Some(r.iter().enumerate().map(|(i, v)| v - pc.map_or(0.0, |q| q[i])).collect())
+                    Some(
+                        r.iter()
+                            .enumerate()
+                            .map(|(i, v)| v - pc.map_or(0.0, |q| q[i]))
+                            .collect(),
+                    )
                 })
             })
             .collect()
@@ -172,8 +184,16 @@ pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
         encoder: s.encoder,
         rod_from_scale: s.rod_from_scale,
         play: s.play.iter().map(sl).collect(),
-        flank: if s.flank.is_empty() { Vec::new() } else { sl(&s.flank) },
-        motion_weight: if s.motion_weight.is_empty() { Vec::new() } else { sl(&s.motion_weight) },
+        flank: if s.flank.is_empty() {
+            Vec::new()
+        } else {
+            sl(&s.flank)
+        },
+        motion_weight: if s.motion_weight.is_empty() {
+            Vec::new()
+        } else {
+            sl(&s.motion_weight)
+        },
         sg_m: s.sg_m,
         dt: s.dt,
     }
@@ -205,13 +225,27 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { library: effects::ALL.to_vec() }
+        Options {
+            library: effects::ALL.to_vec(),
+        }
     }
 }
 
 /// The diagnosis of `log` (and optional held-out log) against `nominal`.
-pub fn diagnose(log: &Log, heldout: Option<&Log>, nominal: Nominal, tilt_default_deg: f64) -> Result<Diagnosis> {
-    diagnose_with(log, heldout, None, nominal, tilt_default_deg, &Options::default())
+pub fn diagnose(
+    log: &Log,
+    heldout: Option<&Log>,
+    nominal: Nominal,
+    tilt_default_deg: f64,
+) -> Result<Diagnosis> {
+    diagnose_with(
+        log,
+        heldout,
+        None,
+        nominal,
+        tilt_default_deg,
+        &Options::default(),
+    )
 }
 
 /// `diagnose`, comparing region by region with a healthy `reference` log.
@@ -222,7 +256,14 @@ pub fn diagnose_against(
     nominal: Nominal,
     tilt_default_deg: f64,
 ) -> Result<Diagnosis> {
-    diagnose_with(log, heldout, reference, nominal, tilt_default_deg, &Options::default())
+    diagnose_with(
+        log,
+        heldout,
+        reference,
+        nominal,
+        tilt_default_deg,
+        &Options::default(),
+    )
 }
 
 /// Unit of channel `c`'s residual under this nominal.
@@ -254,8 +295,11 @@ pub fn diagnose_with(
         }));
     }
     if issues.iter().any(|i| i.severity == Severity::Error) {
-        let list: Vec<String> =
-            issues.iter().filter(|i| i.severity == Severity::Error).map(|i| i.to_string()).collect();
+        let list: Vec<String> = issues
+            .iter()
+            .filter(|i| i.severity == Severity::Error)
+            .map(|i| i.to_string())
+            .collect();
         bail!(
             "{}: the log has {} error(s); nothing is dropped silently, fix them first:\n  {}",
             log.source,
@@ -279,7 +323,10 @@ pub fn diagnose_with(
     let train: Vec<&Segment> = segments.iter().filter(|s| !s.heldout).collect();
     let held: Vec<&Segment> = segments.iter().filter(|s| s.heldout).collect();
     if train.is_empty() || held.is_empty() {
-        bail!("{}: too little data for a training and a held-out part", log.source);
+        bail!(
+            "{}: too little data for a training and a held-out part",
+            log.source
+        );
     }
     let dt = train[0].t.get(1).map_or(1e-3, |t1| t1 - train[0].t[0]);
     let w = fit::channel_weights(&train);
@@ -290,13 +337,23 @@ pub fn diagnose_with(
     let rk = rank::rank(&opts.library, &train, &held, &nominal, &w);
     let primary = rk.primary;
     let mut gates = gates::identity(log, heldout, reference);
-    gates.extend(gates::fit_gates(&train, &fit_before_t, &fit_before_h, &nominal, &rk.not_ranked, &|c| {
-        channel_unit(&nominal, c)
-    }));
-    let blocked = gates.iter().any(|g| g.kind.ends_with("_is_training") || g.kind.ends_with("_is_reference"));
+    gates.extend(gates::fit_gates(
+        &train,
+        &fit_before_t,
+        &fit_before_h,
+        &nominal,
+        &rk.not_ranked,
+        &|c| channel_unit(&nominal, c),
+    ));
+    let blocked = gates
+        .iter()
+        .any(|g| g.kind.ends_with("_is_training") || g.kind.ends_with("_is_reference"));
     let top = if blocked { None } else { rk.top.clone() };
-    let (stack_terms, stack_params) =
-        if blocked { (Vec::new(), Vec::new()) } else { (rk.stack_terms.clone(), rk.stack_params.clone()) };
+    let (stack_terms, stack_params) = if blocked {
+        (Vec::new(), Vec::new())
+    } else {
+        (rk.stack_terms.clone(), rk.stack_params.clone())
+    };
     let stack_gap = if blocked { gap_before_h } else { rk.stack_gap };
     let stack = (!stack_terms.is_empty()).then(|| (stack_terms.clone(), stack_params.clone()));
     let mut wp = [0.0; NCH];
@@ -312,7 +369,11 @@ pub fn diagnose_with(
     };
     let pred_h = stack_pred(&held);
     let stack_fit = fit::fit_pct(&held, Some(&pred_h))[primary].unwrap_or(f64::NAN);
-    let stack_primary_shrink = if stack.is_some() { shrink(gap_primary_h, fit::gap(&held, Some(&pred_h), &wp)) } else { 0.0 };
+    let stack_primary_shrink = if stack.is_some() {
+        shrink(gap_primary_h, fit::gap(&held, Some(&pred_h), &wp))
+    } else {
+        0.0
+    };
     let mut sp = BTreeMap::new();
     let mut k = 0;
     for t in &stack_terms {
@@ -340,34 +401,74 @@ pub fn diagnose_with(
     // (a stack fitted on training may carry a wrong constant into the
     // held-out part), whichever leaves less on training.
     let nominal_rem = |segs: &[&Segment]| -> events::Remainder {
-        segs.iter().map(|s| std::array::from_fn(|c| s.r[c].clone())).collect()
+        segs.iter()
+            .map(|s| std::array::from_fn(|c| s.r[c].clone()))
+            .collect()
     };
     let (rem_hn, rem_tn) = (nominal_rem(&held), nominal_rem(&train));
-    let on_stack = disturbance::fit(&train, &rem_t, &held, &rem_h, &nominal, &w, primary, gap_before_h, gap_primary_h);
-    let on_nominal =
-        disturbance::fit(&train, &rem_tn, &held, &rem_hn, &nominal, &w, primary, gap_before_h, gap_primary_h);
+    let on_stack = disturbance::fit(
+        &train,
+        &rem_t,
+        &held,
+        &rem_h,
+        &nominal,
+        &w,
+        primary,
+        gap_before_h,
+        gap_primary_h,
+    );
+    let on_nominal = disturbance::fit(
+        &train,
+        &rem_tn,
+        &held,
+        &rem_hn,
+        &nominal,
+        &w,
+        primary,
+        gap_before_h,
+        gap_primary_h,
+    );
     let use_nominal = stack.is_some() && on_nominal.0.train_gap_after < on_stack.0.train_gap_after;
     let (mut dist, dist_pred, cps) = if use_nominal { on_nominal } else { on_stack };
-    dist.base = if use_nominal { "nominal".into() } else { "stack".into() };
+    dist.base = if use_nominal {
+        "nominal".into()
+    } else {
+        "stack".into()
+    };
     dist.over_stack_points = dist.primary_shrink_pct - stack_primary_shrink.max(0.0);
     let rem_base = if use_nominal { &rem_hn } else { &rem_h };
     let cps_fixed = events::detect(&held, &rem_h, events::STEP_SIGMA);
     let steps_pct = |c: usize| {
         let mut wc = [0.0; NCH];
         wc[c] = 1.0;
-        shrink(disturbance::gap(&held, rem_base, None, &wc), disturbance::gap(&held, rem_base, Some(&dist_pred), &wc))
+        shrink(
+            disturbance::gap(&held, rem_base, None, &wc),
+            disturbance::gap(&held, rem_base, Some(&dist_pred), &wc),
+        )
     };
     let avail: Vec<usize> = (0..NCH).filter(|c| fit_before_h[*c].is_some()).collect();
+    let kinematic = events::kinematic_periods(match &nominal {
+        Nominal::Physics(p) => Some(p.pole_pairs.round() as u32),
+        Nominal::Regression(_) => None,
+    });
     let time_structure: Vec<events::TimeStructure> = avail
         .iter()
         .map(|&c| {
             // Events at the fixed, conservative threshold (the disturbance's
             // may be lower: more change points can help its levels).
-            let cps_c = if c == residual::VOLTAGE { vec![Vec::new(); held.len()] } else { cps_fixed.clone() };
+            let cps_c = if c == residual::VOLTAGE {
+                vec![Vec::new(); held.len()]
+            } else {
+                cps_fixed.clone()
+            };
             // Steps that follow the logged signals are motion-locked model
             // error, not steps of their own.
-            let steps = if c == residual::VOLTAGE || dist.locked_to_signals { 0.0 } else { steps_pct(c) };
-            events::analyse(&held, &rem_h, c, &cps_c, steps)
+            let steps = if c == residual::VOLTAGE || dist.locked_to_signals {
+                0.0
+            } else {
+                steps_pct(c)
+            };
+            events::analyse(&held, &rem_h, c, &cps_c, steps, &kinematic)
         })
         .collect();
 
@@ -377,7 +478,11 @@ pub fn diagnose_with(
         .iter()
         .map(|&c| {
             let (f, p) = spectrum::welch(&all, c);
-            let rms = (all.iter().filter_map(|s| s.r[c].as_ref()).flat_map(|r| r.iter().map(|x| x * x)).sum::<f64>()
+            let rms = (all
+                .iter()
+                .filter_map(|s| s.r[c].as_ref())
+                .flat_map(|r| r.iter().map(|x| x * x))
+                .sum::<f64>()
                 / all.iter().map(|s| s.len()).sum::<usize>().max(1) as f64)
                 .sqrt();
             ChannelAnalysis {
@@ -400,7 +505,10 @@ pub fn diagnose_with(
             let mine = regions::split_basis(&all, &all, c);
             let theirs = regions::split_basis(&rrefs, &all, c);
             for m in mine {
-                if let Some(t) = theirs.iter().find(|t| t.split == m.split && t.region == m.region) {
+                if let Some(t) = theirs
+                    .iter()
+                    .find(|t| t.split == m.split && t.region == m.region)
+                {
                     reference_comparison.push(RegionComparison {
                         channel: CHANNELS[c].into(),
                         split: m.split.into(),
@@ -417,8 +525,15 @@ pub fn diagnose_with(
     }
     let ranking: Vec<RankEntry> = rk.ranked.iter().map(|r| r.0.clone()).collect();
     let top_entry = ranking.first().filter(|_| top.is_some()).cloned();
-    let stack_names: Vec<String> = stack_terms.iter().map(|t| t.effect.name().to_string()).collect();
-    let stack_weighted = if stack.is_some() { shrink(gap_before_h, stack_gap).max(0.0) } else { 0.0 };
+    let stack_names: Vec<String> = stack_terms
+        .iter()
+        .map(|t| t.effect.name().to_string())
+        .collect();
+    let stack_weighted = if stack.is_some() {
+        shrink(gap_before_h, stack_gap).max(0.0)
+    } else {
+        0.0
+    };
     let top_name = top.as_ref().map(|t| t.0[0].effect.name().to_string());
     let verdict = verdict::decide(
         &gates,
@@ -428,7 +543,9 @@ pub fn diagnose_with(
         stack_weighted,
         stack_primary_shrink.max(0.0),
         Some(&dist),
-        time_structure.iter().find(|t| t.channel == CHANNELS[primary]),
+        time_structure
+            .iter()
+            .find(|t| t.channel == CHANNELS[primary]),
         if blocked { None } else { rk.top_halves },
     );
     let summary = Summary {
@@ -436,7 +553,10 @@ pub fn diagnose_with(
         heldout_source: heldout.map(|h| h.source.clone()),
         nominal: match &nominal {
             Nominal::Physics(_) => "rig physics ([plant] of the rig TOML)".into(),
-            Nominal::Regression(r) => format!("regression fitted on the reference log: {}", serde_json::to_string(r)?),
+            Nominal::Regression(r) => format!(
+                "regression fitted on the reference log: {}",
+                serde_json::to_string(r)?
+            ),
         },
         samples: log.len() + heldout.map_or(0, Log::len),
         train_segments: train.len(),
@@ -451,9 +571,15 @@ pub fn diagnose_with(
         heldout_fit_before: fit_before_h[primary].unwrap_or(f64::NAN),
         heldout_fit_after: top_entry
             .as_ref()
-            .map_or(fit_before_h[primary].unwrap_or(f64::NAN), |e| e.heldout_fit_after),
-        gap_shrink_pct: top_entry.as_ref().map_or(0.0, |e| e.primary_shrink_pct.max(0.0)),
-        gap_shrink_weighted_pct: top_entry.as_ref().map_or(0.0, |e| e.weighted_shrink_pct.max(0.0)),
+            .map_or(fit_before_h[primary].unwrap_or(f64::NAN), |e| {
+                e.heldout_fit_after
+            }),
+        gap_shrink_pct: top_entry
+            .as_ref()
+            .map_or(0.0, |e| e.primary_shrink_pct.max(0.0)),
+        gap_shrink_weighted_pct: top_entry
+            .as_ref()
+            .map_or(0.0, |e| e.weighted_shrink_pct.max(0.0)),
         ranking,
         not_ranked: rk.not_ranked,
         indistinguishable: rk.indist,
@@ -474,12 +600,22 @@ pub fn diagnose_with(
     drop(train);
     drop(held);
     drop(all);
-    Ok(Diagnosis { summary, nominal, segments, primary, top, stack, disturbance_heldout: dist_pred, change_points: cps })
+    Ok(Diagnosis {
+        summary,
+        nominal,
+        segments,
+        primary,
+        top,
+        stack,
+        disturbance_heldout: dist_pred,
+        change_points: cps,
+    })
 }
 
 /// `host-sim diagnose`.
 pub fn run_cli(args: &DiagnoseArgs) -> Result<()> {
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let log = read_log(&args.log, &args.format)?;
     for i in &log.issues {
         eprintln!("{}: {i}", log.source);
@@ -487,17 +623,40 @@ pub fn run_cli(args: &DiagnoseArgs) -> Result<()> {
     if args.convert_only {
         let path = args.out.join("log.csv");
         log.write_csv(&path)?;
-        println!("wrote {} ({} rows, {} errors)", path.display(), log.len(), log.errors().count());
-        return if log.errors().count() > 0 { bail!("the converted log has errors (listed above)") } else { Ok(()) };
+        println!(
+            "wrote {} ({} rows, {} errors)",
+            path.display(),
+            log.len(),
+            log.errors().count()
+        );
+        return if log.errors().count() > 0 {
+            bail!("the converted log has errors (listed above)")
+        } else {
+            Ok(())
+        };
     }
-    let heldout = args.heldout.as_ref().map(|p| read_log(p, &args.format)).transpose()?;
+    let heldout = args
+        .heldout
+        .as_ref()
+        .map(|p| read_log(p, &args.format))
+        .transpose()?;
     let rig = crate::config::RigConfig::load_or_nominal(args.rig.as_ref())?;
-    let reference = args.reference.as_ref().map(|p| read_log(p, &args.format)).transpose()?;
+    let reference = args
+        .reference
+        .as_ref()
+        .map(|p| read_log(p, &args.format))
+        .transpose()?;
     let nominal = match &reference {
         Some(r) => Nominal::Regression(residual::fit_regression(r)?),
         None => Nominal::Physics(residual::Physics::from_rig(&rig)),
     };
-    let mut d = diagnose_against(&log, heldout.as_ref(), reference.as_ref(), nominal, rig.plant.load.initial_tilt_deg)?;
+    let mut d = diagnose_against(
+        &log,
+        heldout.as_ref(),
+        reference.as_ref(),
+        nominal,
+        rig.plant.load.initial_tilt_deg,
+    )?;
     if args.replay {
         match replay::replay(&rig, &log, args.replay_max_s) {
             Ok(r) => d.summary.replay = Some(r),
@@ -526,6 +685,9 @@ pub fn run_cli(args: &DiagnoseArgs) -> Result<()> {
         figures::WEIGHTED,
         s.gap_shrink_stack_weighted_pct
     );
-    println!("wrote {}/{{report.md, summary.json, *.png}}", args.out.display());
+    println!(
+        "wrote {}/{{report.md, summary.json, *.png}}",
+        args.out.display()
+    );
     Ok(())
 }

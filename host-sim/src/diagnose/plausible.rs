@@ -60,10 +60,18 @@ pub fn torque_unsigned(train: &[&Segment]) -> bool {
 }
 
 /// Why the fitted `params` of `effect` are not physical, if so.
-pub fn check(effect: Effect, params: &[f64], nominal: &Nominal, train: &[&Segment]) -> Option<String> {
+pub fn check(
+    effect: Effect,
+    params: &[f64],
+    nominal: &Nominal,
+    train: &[&Segment],
+) -> Option<String> {
     let phys = matches!(nominal, Nominal::Physics(_));
     let signed = phys || !torque_unsigned(train);
-    let duration = train.iter().map(|s| s.t_rel.last().copied().unwrap_or(0.0)).fold(0.0, f64::max);
+    let duration = train
+        .iter()
+        .map(|s| s.t_rel.last().copied().unwrap_or(0.0))
+        .fold(0.0, f64::max);
     let peak_torque = train
         .iter()
         .filter_map(|s| s.y[TORQUE].as_ref())

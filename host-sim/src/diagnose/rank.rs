@@ -59,7 +59,11 @@ pub fn rank(
     let mut ranked: Vec<Ranked> = Vec::new();
     let mut not_ranked = Vec::new();
     for &eff in library {
-        let nr = |status: &str, reason: String| NotRanked { effect: eff.name().into(), status: status.into(), reason };
+        let nr = |status: &str, reason: String| NotRanked {
+            effect: eff.name().into(),
+            status: status.into(),
+            reason,
+        };
         if let Some(why) = eff.not_applicable(train[0], nominal) {
             not_ranked.push(nr("not_applicable", why));
             continue;
@@ -82,11 +86,17 @@ pub fn rank(
             not_ranked.push(nr("implausible", why));
             continue;
         }
-        let pred: Vec<_> = held.iter().map(|s| fit::predict(&f.terms, &f.params, s, nominal)).collect();
+        let pred: Vec<_> = held
+            .iter()
+            .map(|s| fit::predict(&f.terms, &f.params, s, nominal))
+            .collect();
         let g = fit::gap(held, Some(&pred), w);
         let fa = fit::fit_pct(held, Some(&pred));
-        let mut params: BTreeMap<String, f64> =
-            eff.params_for(nominal).into_iter().zip(f.params.iter().copied()).collect();
+        let mut params: BTreeMap<String, f64> = eff
+            .params_for(nominal)
+            .into_iter()
+            .zip(f.params.iter().copied())
+            .collect();
         if let Some(gname) = eff.grid_name_for(nominal) {
             params.insert(gname.into(), f.terms[0].hyper);
         }
@@ -98,11 +108,18 @@ pub fn rank(
             primary_shrink_pct: 0.0,
             heldout_shrink_by_channel: (0..NCH)
                 .filter(|c| fit_before_h[*c].is_some())
-                .map(|c| (CHANNELS[c].to_string(), channel_shrink(held, Some(&pred), c)))
+                .map(|c| {
+                    (
+                        CHANNELS[c].to_string(),
+                        channel_shrink(held, Some(&pred), c),
+                    )
+                })
                 .collect(),
             heldout_fit_before: 0.0,
             heldout_fit_after: 0.0,
-            heldout_fit_after_by_channel: (0..NCH).filter_map(|c| fa[c].map(|v| (CHANNELS[c].to_string(), v))).collect(),
+            heldout_fit_after_by_channel: (0..NCH)
+                .filter_map(|c| fa[c].map(|v| (CHANNELS[c].to_string(), v)))
+                .collect(),
             train_gap_shrink_pct: shrink(gap_before_t, f.train_gap),
             indistinguishable_from: Vec::new(),
         };
@@ -120,17 +137,32 @@ pub fn rank(
                 wc[c] = w[c];
                 fit::gap(held, None, &wc).powi(2) - fit::gap(held, Some(pred), &wc).powi(2)
             };
-            *avail.iter().max_by(|a, b| gain(**a).total_cmp(&gain(**b))).unwrap_or(&0)
+            *avail
+                .iter()
+                .max_by(|a, b| gain(**a).total_cmp(&gain(**b)))
+                .unwrap_or(&0)
         }
         None => *avail
             .iter()
-            .min_by(|a, b| fit_before_h[**a].unwrap_or(0.0).total_cmp(&fit_before_h[**b].unwrap_or(0.0)))
+            .min_by(|a, b| {
+                fit_before_h[**a]
+                    .unwrap_or(0.0)
+                    .total_cmp(&fit_before_h[**b].unwrap_or(0.0))
+            })
             .unwrap_or(&0),
     };
     for r in &mut ranked {
         r.0.heldout_fit_before = fit_before_h[primary].unwrap_or(f64::NAN);
-        r.0.heldout_fit_after = r.0.heldout_fit_after_by_channel.get(CHANNELS[primary]).copied().unwrap_or(f64::NAN);
-        r.0.primary_shrink_pct = r.0.heldout_shrink_by_channel.get(CHANNELS[primary]).copied().unwrap_or(0.0);
+        r.0.heldout_fit_after =
+            r.0.heldout_fit_after_by_channel
+                .get(CHANNELS[primary])
+                .copied()
+                .unwrap_or(f64::NAN);
+        r.0.primary_shrink_pct =
+            r.0.heldout_shrink_by_channel
+                .get(CHANNELS[primary])
+                .copied()
+                .unwrap_or(0.0);
     }
 
     // Indistinguishable pairs: weighted predictions correlate > 0.95 on the
@@ -157,7 +189,10 @@ pub fn rank(
     };
     for a in 0..ranked.len() {
         for b in a + 1..ranked.len() {
-            let (sa, sb) = (ranked[a].0.weighted_shrink_pct, ranked[b].0.weighted_shrink_pct);
+            let (sa, sb) = (
+                ranked[a].0.weighted_shrink_pct,
+                ranked[b].0.weighted_shrink_pct,
+            );
             if sa < 10.0 || sb < 10.0 {
                 continue;
             }
@@ -182,18 +217,25 @@ pub fn rank(
     let mut stack_gap = ranked
         .first()
         .filter(|_| top.is_some())
-        .map_or(gap_before_h, |r| gap_before_h * (1.0 - r.0.weighted_shrink_pct / 100.0));
+        .map_or(gap_before_h, |r| {
+            gap_before_h * (1.0 - r.0.weighted_shrink_pct / 100.0)
+        });
     if top.is_some() {
         for _ in 0..3 {
             let mut best: Option<(Vec<Term>, Vec<f64>, f64)> = None;
             for cand in ranked.iter().skip(1) {
-                if cand.0.weighted_shrink_pct <= 1.0 || stack_terms.iter().any(|t| t.effect == cand.1[0].effect) {
+                if cand.0.weighted_shrink_pct <= 1.0
+                    || stack_terms.iter().any(|t| t.effect == cand.1[0].effect)
+                {
                     continue;
                 }
                 let mut terms = stack_terms.clone();
                 terms.extend(cand.1.iter().copied());
                 if let Ok(p) = fit::fit_terms(&terms, train, nominal, w) {
-                    let pred: Vec<_> = held.iter().map(|s| fit::predict(&terms, &p, s, nominal)).collect();
+                    let pred: Vec<_> = held
+                        .iter()
+                        .map(|s| fit::predict(&terms, &p, s, nominal))
+                        .collect();
                     let g = fit::gap(held, Some(&pred), w);
                     if best.as_ref().is_none_or(|b| g < b.2) {
                         best = Some((terms, p, g));
@@ -228,15 +270,34 @@ pub fn rank(
             let refs: Vec<&Segment> = segs.iter().collect();
             match fit::fit_terms(terms, &refs, nominal, w) {
                 Ok(p) => {
-                    let pred: Vec<_> = held.iter().map(|s| fit::predict(terms, &p, s, nominal)).collect();
-                    (channel_shrink(held, Some(&pred), primary), p.first().copied().unwrap_or(f64::NAN))
+                    let pred: Vec<_> = held
+                        .iter()
+                        .map(|s| fit::predict(terms, &p, s, nominal))
+                        .collect();
+                    (
+                        channel_shrink(held, Some(&pred), primary),
+                        p.first().copied().unwrap_or(f64::NAN),
+                    )
                 }
                 Err(_) => (f64::NAN, f64::NAN),
             }
         };
         let ((s0, p0), (s1, p1)) = (score(&halves[0]), score(&halves[1]));
-        let full = top.as_ref().and_then(|t| t.1.first().copied()).unwrap_or(f64::NAN);
+        let full = top
+            .as_ref()
+            .and_then(|t| t.1.first().copied())
+            .unwrap_or(f64::NAN);
         (s0, s1, (p1 - p0).abs() / full.abs())
     });
-    Ranking { ranked, not_ranked, primary, indist, top, stack_terms, stack_params, stack_gap, top_halves }
+    Ranking {
+        ranked,
+        not_ranked,
+        primary,
+        indist,
+        top,
+        stack_terms,
+        stack_params,
+        stack_gap,
+        top_halves,
+    }
 }

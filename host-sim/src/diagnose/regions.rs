@@ -21,7 +21,9 @@ fn quantiles(mut v: Vec<f64>, qs: &[f64]) -> Vec<f64> {
     if v.is_empty() {
         return qs.iter().map(|_| 0.0).collect();
     }
-    qs.iter().map(|q| v[((v.len() - 1) as f64 * q) as usize]).collect()
+    qs.iter()
+        .map(|q| v[((v.len() - 1) as f64 * q) as usize])
+        .collect()
 }
 
 /// Region label functions over all samples of `segs` for channel `ch`.
@@ -32,13 +34,28 @@ pub fn split(segs: &[&Segment], ch: usize) -> Vec<RegionStat> {
 /// `split` with the band edges taken from `basis` (to compare two logs
 /// region by region).
 pub fn split_basis(segs: &[&Segment], basis: &[&Segment], ch: usize) -> Vec<RegionStat> {
-    let speed: Vec<f64> = basis.iter().flat_map(|s| s.v.iter().map(|v| v.abs())).collect();
+    let speed: Vec<f64> = basis
+        .iter()
+        .flat_map(|s| s.v.iter().map(|v| v.abs()))
+        .collect();
     let vmax = speed.iter().fold(0.0f64, |m, v| m.max(*v));
     let moving: Vec<f64> = speed.iter().copied().filter(|v| *v > 0.05 * vmax).collect();
     let vq = quantiles(moving, &[1.0 / 3.0, 2.0 / 3.0]);
-    let amax = basis.iter().flat_map(|s| s.a.iter()).fold(0.0f64, |m, a| m.max(a.abs()));
-    let fq = quantiles(basis.iter().flat_map(|s| s.f_load.iter().copied()).collect(), &[1.0 / 3.0, 2.0 / 3.0]);
-    let xq = quantiles(basis.iter().flat_map(|s| s.x.iter().copied()).collect(), &[0.0, 0.2, 0.4, 0.6, 0.8, 1.0]);
+    let amax = basis
+        .iter()
+        .flat_map(|s| s.a.iter())
+        .fold(0.0f64, |m, a| m.max(a.abs()));
+    let fq = quantiles(
+        basis
+            .iter()
+            .flat_map(|s| s.f_load.iter().copied())
+            .collect(),
+        &[1.0 / 3.0, 2.0 / 3.0],
+    );
+    let xq = quantiles(
+        basis.iter().flat_map(|s| s.x.iter().copied()).collect(),
+        &[0.0, 0.2, 0.4, 0.6, 0.8, 1.0],
+    );
     type Label = Box<dyn Fn(&Segment, usize) -> String>;
     let (vq0, vq1, fq0, fq1) = (vq[0], vq[1], fq[0], fq[1]);
     let xq2 = xq.clone();
@@ -114,7 +131,11 @@ pub fn split_basis(segs: &[&Segment], basis: &[&Segment], ch: usize) -> Vec<Regi
             }),
         ),
     ];
-    let total: f64 = segs.iter().filter_map(|s| s.r[ch].as_ref()).flat_map(|r| r.iter().map(|x| x * x)).sum();
+    let total: f64 = segs
+        .iter()
+        .filter_map(|s| s.r[ch].as_ref())
+        .flat_map(|r| r.iter().map(|x| x * x))
+        .sum();
     let mut out = Vec::new();
     for (name, label) in &splits {
         let mut acc: std::collections::BTreeMap<String, (usize, f64, f64)> = Default::default();
@@ -150,26 +171,56 @@ pub struct HeatMap {
 }
 
 pub fn heat_map(segs: &[&Segment], ch: usize) -> HeatMap {
-    let vmax = segs.iter().flat_map(|s| s.v.iter()).fold(1e-12f64, |m, v| m.max(v.abs()));
-    let speed_edges: Vec<f64> = (0..=7).map(|k| -vmax + 2.0 * vmax * k as f64 / 7.0).collect();
+    let vmax = segs
+        .iter()
+        .flat_map(|s| s.v.iter())
+        .fold(1e-12f64, |m, v| m.max(v.abs()));
+    let speed_edges: Vec<f64> = (0..=7)
+        .map(|k| -vmax + 2.0 * vmax * k as f64 / 7.0)
+        .collect();
     let (xlo, xhi) = segs
         .iter()
         .flat_map(|s| s.x.iter())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(*x), h.max(*x)));
-    let stroke_edges: Vec<f64> = (0..=5).map(|k| xlo + (xhi - xlo) * k as f64 / 5.0).collect();
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+            (l.min(*x), h.max(*x))
+        });
+    let stroke_edges: Vec<f64> = (0..=5)
+        .map(|k| xlo + (xhi - xlo) * k as f64 / 5.0)
+        .collect();
     let mut acc = vec![vec![(0.0, 0usize); 5]; 7];
     for s in segs {
         let Some(r) = &s.r[ch] else { continue };
         for (i, ri) in r.iter().enumerate() {
             let a = (((s.v[i] + vmax) / (2.0 * vmax) * 7.0) as usize).min(6);
-            let b = if xhi > xlo { (((s.x[i] - xlo) / (xhi - xlo) * 5.0) as usize).min(4) } else { 0 };
+            let b = if xhi > xlo {
+                (((s.x[i] - xlo) / (xhi - xlo) * 5.0) as usize).min(4)
+            } else {
+                0
+            };
             acc[a][b].0 += ri * ri;
             acc[a][b].1 += 1;
         }
     }
     let cells = acc
         .into_iter()
-        .map(|row| row.into_iter().map(|(ss, n)| (if n > 0 { (ss / n as f64).sqrt() } else { f64::NAN }, n)).collect())
+        .map(|row| {
+            row.into_iter()
+                .map(|(ss, n)| {
+                    (
+                        if n > 0 {
+                            (ss / n as f64).sqrt()
+                        } else {
+                            f64::NAN
+                        },
+                        n,
+                    )
+                })
+                .collect()
+        })
         .collect();
-    HeatMap { speed_edges, stroke_edges, cells }
+    HeatMap {
+        speed_edges,
+        stroke_edges,
+        cells,
+    }
 }

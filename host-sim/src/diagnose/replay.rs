@@ -51,7 +51,11 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
     let Some(reference) = log.get("position_reference_m") else {
         bail!("replay needs position_reference_m");
     };
-    let (s, e) = log.segments().into_iter().next().ok_or_else(|| anyhow::anyhow!("empty log"))?;
+    let (s, e) = log
+        .segments()
+        .into_iter()
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("empty log"))?;
     let time = &log.get("time_s").expect("required")[s..e];
     let refx = &reference[s..e];
     let n = time.iter().take_while(|t| **t - time[0] <= max_s).count();
@@ -59,13 +63,18 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
         bail!("replay: fewer than 10 samples");
     }
     let dt = (time[n - 1] - time[0]) / (n - 1) as f64;
-    let vref: Vec<f64> = (0..n).map(|i| (refx[(i + 1).min(n - 1)] - refx[i.saturating_sub(1)]) / (dt * 2.0)).collect();
-    let aref: Vec<f64> = (0..n).map(|i| (vref[(i + 1).min(n - 1)] - vref[i.saturating_sub(1)]) / (dt * 2.0)).collect();
+    let vref: Vec<f64> = (0..n)
+        .map(|i| (refx[(i + 1).min(n - 1)] - refx[i.saturating_sub(1)]) / (dt * 2.0))
+        .collect();
+    let aref: Vec<f64> = (0..n)
+        .map(|i| (vref[(i + 1).min(n - 1)] - vref[i.saturating_sub(1)]) / (dt * 2.0))
+        .collect();
     let vmax = vref.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let amax = aref.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let mut control = rig.control;
     if vmax > 1e-6 {
-        control.trajectory.max_velocity_m_s = (vmax as f32).min(control.trajectory.max_velocity_m_s.max(vmax as f32));
+        control.trajectory.max_velocity_m_s =
+            (vmax as f32).min(control.trajectory.max_velocity_m_s.max(vmax as f32));
     }
     if amax > 1e-6 {
         control.trajectory.max_acceleration_m_s2 =
@@ -79,22 +88,37 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
     let tilt0 = tilt.map_or(rig.plant.load.initial_tilt_deg, |v| v[0]);
     plant.set_external_force_n(f_ext.map_or(0.0, |v| v[0]));
     plant.set_initial_state((refx[0] - x0) / k, tilt0.to_radians());
-    let controller =
-        Controller::try_new(crate::sim::commissioned_control(control, &plant)).map_err(|e| anyhow::anyhow!("rig: {e}"))?;
+    let controller = Controller::try_new(crate::sim::commissioned_control(control, &plant))
+        .map_err(|e| anyhow::anyhow!("rig: {e}"))?;
     let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
     cl.controller
-        .command(Command::SetHome { position_m: (refx[0] - x0) as f32 })
+        .command(Command::SetHome {
+            position_m: (refx[0] - x0) as f32,
+        })
         .map_err(|e| anyhow::anyhow!("replay: SetHome refused: {e:?}"))?;
-    cl.controller.command(Command::Enable).map_err(|e| anyhow::anyhow!("replay: Enable refused: {e:?}"))?;
-    let per_log = (dt * f64::from(control.rates.pwm_frequency_hz)).round().max(1.0) as u64;
+    cl.controller
+        .command(Command::Enable)
+        .map_err(|e| anyhow::anyhow!("replay: Enable refused: {e:?}"))?;
+    let per_log = (dt * f64::from(control.rates.pwm_frequency_hz))
+        .round()
+        .max(1.0) as u64;
     let shift_max = f64::from(control.faults.observer_shift_max_m) * 0.95;
     let rest = |i: usize| vref[i].abs() < 0.01 * vmax.max(1e-9);
     let mut moves = 0;
     let mut saturated = 0usize;
     let mut aborted = None;
-    let names = ["position_reference_m", "motor_angle_rad", "terminal_position_m", "current_q_a", "voltage_q_v"];
-    let mut traces: Vec<(String, Trace)> =
-        names.iter().filter(|name| log.has(name)).map(|name| (name.to_string(), Vec::with_capacity(n))).collect();
+    let names = [
+        "position_reference_m",
+        "motor_angle_rad",
+        "terminal_position_m",
+        "current_q_a",
+        "voltage_q_v",
+    ];
+    let mut traces: Vec<(String, Trace)> = names
+        .iter()
+        .filter(|name| log.has(name))
+        .map(|name| (name.to_string(), Vec::with_capacity(n)))
+        .collect();
     // Logged moves: (start, end, target). Each is issued so that the core's
     // move (duration estimated from its limits) is centred on the logged one.
     let (vc, ac, jc) = (
@@ -131,7 +155,13 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
         }
         if next_move < planned.len() && i >= planned[next_move].0 {
             let target = planned[next_move].1;
-            if cl.controller.command(Command::MoveTo { position_m: target as f32 }).is_ok() {
+            if cl
+                .controller
+                .command(Command::MoveTo {
+                    position_m: target as f32,
+                })
+                .is_ok()
+            {
                 moves += 1;
                 next_move += 1;
             }
@@ -141,20 +171,27 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
         if diff.abs() > shift_max {
             saturated += 1;
         }
-        let _ = cl.controller.command(Command::SetPositionShift { shift_m: diff.clamp(-shift_max, shift_max) as f32 });
+        let _ = cl.controller.command(Command::SetPositionShift {
+            shift_m: diff.clamp(-shift_max, shift_max) as f32,
+        });
         let mut tel = tel;
         for _ in 0..per_log {
             tel = cl.step();
         }
         if !tel.faults.is_empty() {
-            aborted = Some(format!("fault {:?} latched at log time {:.3} s", tel.faults, time[i]));
+            aborted = Some(format!(
+                "fault {:?} latched at log time {:.3} s",
+                tel.faults, time[i]
+            ));
             break;
         }
         let st = cl.sampled_state();
         for (name, tr) in &mut traces {
             let logged = log.get(name).expect("has")[s + i];
             let replayed = match name.as_str() {
-                "position_reference_m" => x0 + f64::from(tel.position_reference_m) + f64::from(tel.position_shift_m),
+                "position_reference_m" => {
+                    x0 + f64::from(tel.position_reference_m) + f64::from(tel.position_shift_m)
+                }
                 "motor_angle_rad" => st.theta_m_rad,
                 "terminal_position_m" => st.terminal_position_m,
                 "current_q_a" => f64::from(tel.current_q_a),
@@ -172,7 +209,11 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
             let sy: f64 = tr.iter().map(|p| (p.1 - m).powi(2)).sum();
             SignalComparison {
                 signal: name.clone(),
-                fit_pct: if sy > 0.0 { 100.0 * (1.0 - (se / sy).sqrt()) } else { f64::NAN },
+                fit_pct: if sy > 0.0 {
+                    100.0 * (1.0 - (se / sy).sqrt())
+                } else {
+                    f64::NAN
+                },
                 rms_difference: (se / tr.len().max(1) as f64).sqrt(),
                 samples: tr.len(),
             }

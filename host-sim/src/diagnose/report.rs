@@ -2,8 +2,8 @@
 //! over time, residual by region heat map, residual spectrum, before/after
 //! overlay on the held-out part).
 
-use super::residual::{Segment, CHANNELS};
 use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
+use super::residual::{Segment, CHANNELS};
 use super::{export, fit, regions, spectrum, Diagnosis};
 use crate::report::plots::{line_chart, Series};
 use anyhow::{anyhow, Result};
@@ -34,10 +34,16 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
             points: (0..s.len()).step_by(step).map(|i| (s.t[i], r[i])).collect(),
         }];
         let mut overlay = vec![
-            Series { name: "measured", points: (0..s.len()).step_by(step).map(|i| (s.t[i], y[i])).collect() },
+            Series {
+                name: "measured",
+                points: (0..s.len()).step_by(step).map(|i| (s.t[i], y[i])).collect(),
+            },
             Series {
                 name: "nominal model",
-                points: (0..s.len()).step_by(step).map(|i| (s.t[i], y[i] - r[i])).collect(),
+                points: (0..s.len())
+                    .step_by(step)
+                    .map(|i| (s.t[i], y[i] - r[i]))
+                    .collect(),
             },
         ];
         for (name, tp) in [("after top effect", &d.top), ("after stack", &d.stack)] {
@@ -46,11 +52,21 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
                 if let Some(pc) = &pred[c] {
                     series.push(Series {
                         name,
-                        points: (0..s.len()).step_by(step).map(|i| (s.t[i], r[i] - pc[i])).collect(),
+                        points: (0..s.len())
+                            .step_by(step)
+                            .map(|i| (s.t[i], r[i] - pc[i]))
+                            .collect(),
                     });
                     overlay.push(Series {
-                        name: if name == "after top effect" { "nominal + top effect" } else { "nominal + stack" },
-                        points: (0..s.len()).step_by(step).map(|i| (s.t[i], y[i] - r[i] + pc[i])).collect(),
+                        name: if name == "after top effect" {
+                            "nominal + top effect"
+                        } else {
+                            "nominal + stack"
+                        },
+                        points: (0..s.len())
+                            .step_by(step)
+                            .map(|i| (s.t[i], y[i] - r[i] + pc[i]))
+                            .collect(),
                     });
                 }
             }
@@ -74,7 +90,12 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
     let (f, p) = spectrum::welch(&all, c);
     let mut series = vec![Series {
         name: "nominal residual",
-        points: f.iter().zip(&p).skip(1).map(|(f, p)| (*f, p.max(1e-30).log10())).collect(),
+        points: f
+            .iter()
+            .zip(&p)
+            .skip(1)
+            .map(|(f, p)| (*f, p.max(1e-30).log10()))
+            .collect(),
     }];
     if let Some((t, pr)) = &d.stack {
         let segs_after: Vec<Segment> = all
@@ -92,7 +113,12 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
         let (f2, p2) = spectrum::welch(&refs, c);
         series.push(Series {
             name: "after stack",
-            points: f2.iter().zip(&p2).skip(1).map(|(f, p)| (*f, p.max(1e-30).log10())).collect(),
+            points: f2
+                .iter()
+                .zip(&p2)
+                .skip(1)
+                .map(|(f, p)| (*f, p.max(1e-30).log10()))
+                .collect(),
         });
     }
     line_chart(
@@ -102,7 +128,11 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
         "log10 PSD",
         &series,
     )?;
-    heat_map_png(&regions::heat_map(&all, c), &dir.join("heatmap.png"), CHANNELS[c])?;
+    heat_map_png(
+        &regions::heat_map(&all, c),
+        &dir.join("heatmap.png"),
+        CHANNELS[c],
+    )?;
     if let Some(rp) = &d.summary.replay {
         for (name, tr) in &rp.traces {
             let step = (tr.len() / 4000).max(1);
@@ -112,7 +142,10 @@ fn plots(d: &Diagnosis, dir: &Path) -> Result<()> {
                 "time [s]",
                 name,
                 &[
-                    Series { name: "logged", points: tr.iter().step_by(step).map(|p| (p.0, p.1)).collect() },
+                    Series {
+                        name: "logged",
+                        points: tr.iter().step_by(step).map(|p| (p.0, p.1)).collect(),
+                    },
                     Series {
                         name: "replayed (nominal plant + core)",
                         points: tr.iter().step_by(step).map(|p| (p.0, p.2)).collect(),
@@ -132,24 +165,46 @@ fn heat_map_png(h: &regions::HeatMap, path: &Path, ch: &str) -> Result<()> {
     let (x0, x1) = (h.stroke_edges[0], *h.stroke_edges.last().expect("edges"));
     let x1 = if x1 > x0 { x1 } else { x0 + 1e-3 };
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("RMS {ch} residual by speed × stroke position"), ("sans-serif", 24))
+        .caption(
+            format!("RMS {ch} residual by speed × stroke position"),
+            ("sans-serif", 24),
+        )
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(70)
         .build_cartesian_2d(v0..v1, x0..x1)
         .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc("rod speed [m/s]").y_desc("stroke position [m]").draw().map_err(|e| err(&e))?;
-    let max = h.cells.iter().flatten().map(|c| c.0).filter(|v| v.is_finite()).fold(0.0f64, f64::max).max(1e-300);
+    chart
+        .configure_mesh()
+        .x_desc("rod speed [m/s]")
+        .y_desc("stroke position [m]")
+        .draw()
+        .map_err(|e| err(&e))?;
+    let max = h
+        .cells
+        .iter()
+        .flatten()
+        .map(|c| c.0)
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1e-300);
     for (a, row) in h.cells.iter().enumerate() {
         for (b, (rms, n)) in row.iter().enumerate() {
             if *n == 0 {
                 continue;
             }
             let u = (rms / max).clamp(0.0, 1.0);
-            let col = RGBColor((255.0 * u) as u8, (60.0 + 100.0 * (1.0 - u)) as u8, (255.0 * (1.0 - u)) as u8);
+            let col = RGBColor(
+                (255.0 * u) as u8,
+                (60.0 + 100.0 * (1.0 - u)) as u8,
+                (255.0 * (1.0 - u)) as u8,
+            );
             chart
                 .draw_series(std::iter::once(Rectangle::new(
-                    [(h.speed_edges[a], h.stroke_edges[b]), (h.speed_edges[a + 1], h.stroke_edges[b + 1])],
+                    [
+                        (h.speed_edges[a], h.stroke_edges[b]),
+                        (h.speed_edges[a + 1], h.stroke_edges[b + 1]),
+                    ],
                     col.filled(),
                 )))
                 .map_err(|e| err(&e))?;
@@ -177,7 +232,9 @@ fn markdown(d: &Diagnosis) -> String {
         m,
         "- log: `{}`{}",
         s.source,
-        s.heldout_source.as_ref().map_or(String::new(), |h| format!(", held-out log `{h}`"))
+        s.heldout_source
+            .as_ref()
+            .map_or(String::new(), |h| format!(", held-out log `{h}`"))
     );
     let _ = writeln!(m, "- nominal: {}", s.nominal);
     let _ = writeln!(
@@ -189,7 +246,15 @@ fn markdown(d: &Diagnosis) -> String {
     if !s.gates.is_empty() {
         let _ = writeln!(m, "## Warnings (before any finding)\n");
         for g in &s.gates {
-            let _ = writeln!(m, "- **{}**{}: {}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!(" ({c})")), g.message);
+            let _ = writeln!(
+                m,
+                "- **{}**{}: {}",
+                g.kind,
+                g.channel
+                    .as_ref()
+                    .map_or(String::new(), |c| format!(" ({c})")),
+                g.message
+            );
         }
         let _ = writeln!(m);
     }
@@ -219,7 +284,11 @@ fn markdown(d: &Diagnosis) -> String {
         let _ = writeln!(
             m,
             "Effects the data cannot tell apart: {}\n",
-            s.indistinguishable.iter().map(|(a, b)| format!("{a} ≈ {b}")).collect::<Vec<_>>().join(", ")
+            s.indistinguishable
+                .iter()
+                .map(|(a, b)| format!("{a} ≈ {b}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     if let Some(dz) = &s.disturbance {
@@ -262,15 +331,26 @@ fn markdown(d: &Diagnosis) -> String {
             let _ = writeln!(
                 m,
                 "Change points (run, s): {}\n",
-                dz.change_times_s.iter().map(|(r, t)| format!("({r}, {t:.3})")).collect::<Vec<_>>().join(" ")
+                dz.change_times_s
+                    .iter()
+                    .map(|(r, t)| format!("({r}, {t:.3})"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
             );
         }
     }
     if !s.time_structure.is_empty() {
-        let _ = writeln!(m, "## Time structure of the held-out remainder (after the stack)\n");
+        let _ = writeln!(
+            m,
+            "## Time structure of the held-out remainder (after the stack)\n"
+        );
         let _ = writeln!(m, "| channel | character | change points | energy after them % | time share % | energy after move starts/stops % | time share % | steps explain % | dominant period s (ACF) | Ljung–Box p | slow share % | max input |ρ| |\n|---|---|---|---|---|---|---|---|---|---|---|---|");
         for t in &s.time_structure {
-            let best = t.input_correlation.iter().cloned().fold((String::new(), 0.0), |a, b| if b.1 > a.1 { b } else { a });
+            let best = t
+                .input_correlation
+                .iter()
+                .cloned()
+                .fold((String::new(), 0.0), |a, b| if b.1 > a.1 { b } else { a });
             let _ = writeln!(
                 m,
                 "| {} | **{}** | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.2e} | {:.1} | {:.2} ({}) |",
@@ -291,7 +371,10 @@ fn markdown(d: &Diagnosis) -> String {
         }
         let _ = writeln!(m, "\nWindows: {:.0} ms before to {:.0} ms after each event. Event-locked averages, event lists and the residual series: summary.json, residual_<channel>.csv, residual_events_<channel>.png.\n", 1e3 * super::events::EVENT_BEFORE_S, 1e3 * super::events::EVENT_AFTER_S);
     }
-    let _ = writeln!(m, "## Ranking (fitted on training, scored on held-out; shares of the gap)\n");
+    let _ = writeln!(
+        m,
+        "## Ranking (fitted on training, scored on held-out; shares of the gap)\n"
+    );
     let _ = writeln!(
         m,
         "| # | effect | {WEIGHTED} % | {PRIMARY} ({}) % | fit before % | fit after % | parameters | indistinguishable from |",
@@ -299,7 +382,11 @@ fn markdown(d: &Diagnosis) -> String {
     );
     let _ = writeln!(m, "|---|---|---|---|---|---|---|---|");
     for (k, r) in s.ranking.iter().enumerate() {
-        let params: Vec<String> = r.params.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
+        let params: Vec<String> = r
+            .params
+            .iter()
+            .map(|(n, v)| format!("{n} = {v:.4e}"))
+            .collect();
         let _ = writeln!(
             m,
             "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
@@ -326,7 +413,10 @@ fn markdown(d: &Diagnosis) -> String {
             "### {} channel\n\nFit % (nominal): training {:.1}, held-out {:.1}; RMS residual {:.4e}.\n",
             c.channel, c.fit_train_pct, c.fit_heldout_pct, c.residual_rms
         );
-        let _ = writeln!(m, "| split | region | samples | RMS | mean | energy % |\n|---|---|---|---|---|---|");
+        let _ = writeln!(
+            m,
+            "| split | region | samples | RMS | mean | energy % |\n|---|---|---|---|---|---|"
+        );
         for r in &c.regions {
             let _ = writeln!(
                 m,
@@ -375,9 +465,16 @@ fn markdown(d: &Diagnosis) -> String {
             r.wall_s,
             r.aborted.as_ref().map_or(String::new(), |a| format!("; stopped: {a}"))
         );
-        let _ = writeln!(m, "| signal | Fit % | RMS difference | samples |\n|---|---|---|---|");
+        let _ = writeln!(
+            m,
+            "| signal | Fit % | RMS difference | samples |\n|---|---|---|---|"
+        );
         for sc in &r.signals {
-            let _ = writeln!(m, "| {} | {:.1} | {:.3e} | {} |", sc.signal, sc.fit_pct, sc.rms_difference, sc.samples);
+            let _ = writeln!(
+                m,
+                "| {} | {:.1} | {:.3e} | {} |",
+                sc.signal, sc.fit_pct, sc.rms_difference, sc.samples
+            );
         }
         let _ = writeln!(m, "\nPlots: replay_<signal>.png.\n");
     }
@@ -390,7 +487,14 @@ fn markdown(d: &Diagnosis) -> String {
             let _ = writeln!(
                 m,
                 "| {} | {} | {} | {:.3e} | {:.3e} | {:.2} | {:.3e} | {:.3e} |",
-                r.channel, r.split, r.region, r.rms_log, r.rms_reference, r.ratio, r.mean_log, r.mean_reference
+                r.channel,
+                r.split,
+                r.region,
+                r.rms_log,
+                r.rms_reference,
+                r.ratio,
+                r.mean_log,
+                r.mean_reference
             );
         }
         let _ = writeln!(m);

@@ -111,9 +111,10 @@ impl Physics {
     /// Nominal friction torque at the motor.
     pub fn friction(&self, omega: f64, f_ax: f64) -> f64 {
         let v = self.k * omega;
-        let rod =
-            self.rod_coulomb_n + (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
-        self.b_rot * omega + self.sgn(omega) * (self.drag_n_m + self.k * rod + self.mu * self.k * f_ax.abs())
+        let rod = self.rod_coulomb_n
+            + (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
+        self.b_rot * omega
+            + self.sgn(omega) * (self.drag_n_m + self.k * rod + self.mu * self.k * f_ax.abs())
     }
 
     /// The torsional path (coupling + screw twist to the nut) carries, on
@@ -141,8 +142,12 @@ impl Physics {
     pub fn rod_friction_n(&self, v: f64, dir: f64) -> (f64, f64) {
         let moving = (v / (self.k * self.omega_eps)).abs().tanh();
         let s = moving * v.signum() + (1.0 - moving) * dir;
-        let stribeck = (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
-        (self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck, moving)
+        let stribeck =
+            (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
+        (
+            self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck,
+            moving,
+        )
     }
 
     /// Motor torque the nominal model needs for (ω, α) with the nut carrying
@@ -165,7 +170,9 @@ impl Physics {
 
     /// Nominal static deflection (motor side minus terminal), m.
     pub fn deflection(&self, f_ax: f64, x: f64) -> f64 {
-        self.compliance.static_deflection(f_ax, x).terminal_total_m()
+        self.compliance
+            .static_deflection(f_ax, x)
+            .terminal_total_m()
     }
 
     /// Local compliance `d deflection / dF`, m/N.
@@ -197,14 +204,36 @@ pub struct Regression {
 /// Regression features: a constant, the reference speed's sign, the
 /// reference speed now and 2, 4, 8 and 12 samples ago (the drive's lag),
 /// the reference acceleration, the load and the load × sign.
-pub const REG_FEATURES: [&str; 10] = ["1", "sgn(v)", "v", "v[-2]", "v[-4]", "v[-8]", "v[-12]", "a", "F", "F·sgn(v)"];
+pub const REG_FEATURES: [&str; 10] = [
+    "1",
+    "sgn(v)",
+    "v",
+    "v[-2]",
+    "v[-4]",
+    "v[-8]",
+    "v[-12]",
+    "a",
+    "F",
+    "F·sgn(v)",
+];
 pub const NREG: usize = REG_FEATURES.len();
 
 fn reg_features(seg: &Segment, i: usize, f: f64, v_eps: f64) -> [f64; NREG] {
     let v = seg.v_ref[i];
     let lag = |k: usize| seg.v_ref[i.saturating_sub(k)];
     let s = (v / v_eps).tanh();
-    [1.0, s, v, lag(2), lag(4), lag(8), lag(12), seg.a_ref[i], f / 1000.0, f / 1000.0 * s]
+    [
+        1.0,
+        s,
+        v,
+        lag(2),
+        lag(4),
+        lag(8),
+        lag(12),
+        seg.a_ref[i],
+        f / 1000.0,
+        f / 1000.0 * s,
+    ]
 }
 
 /// A contiguous stretch of samples with its kinematics and residuals.
@@ -291,7 +320,9 @@ pub fn play_deviation(x: &[f64], b: f64) -> Vec<f64> {
 /// across the gap; sliding, only the sign counts. Without a load the
 /// force follows the motion and this is the play operator.
 pub fn flank_deviation(force: &[(f64, f64)], f_hold: f64) -> Vec<f64> {
-    let mut flank = force.first().map_or(1.0, |f| if f.0 < 0.0 { -1.0 } else { 1.0 });
+    let mut flank = force
+        .first()
+        .map_or(1.0, |f| if f.0 < 0.0 { -1.0 } else { 1.0 });
     force
         .iter()
         .map(|&(f, moving)| {
@@ -327,8 +358,12 @@ pub fn sg_second_gain(m: usize, phi: f64) -> f64 {
     }
     let mf = m as f64;
     let s2 = mf * (mf + 1.0) / 3.0;
-    let sq: f64 = (0..=2 * m).map(|j| ((j as f64 - mf).powi(2) - s2).powi(2)).sum();
-    let num: f64 = (0..=2 * m).map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq * ((j as f64 - mf) * phi).cos()).sum();
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let num: f64 = (0..=2 * m)
+        .map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq * ((j as f64 - mf) * phi).cos())
+        .sum();
     -num / (phi * phi)
 }
 
@@ -362,7 +397,9 @@ fn sg(y: &[f64], i: usize, m: usize, h: f64) -> (f64, f64, f64) {
     let mf = m as f64;
     let s2 = mf * (mf + 1.0) / 3.0;
     let sk2: f64 = (1..=m).map(|k| 2.0 * (k as f64).powi(2)).sum();
-    let sq: f64 = (0..=2 * m).map(|j| ((j as f64 - mf).powi(2) - s2).powi(2)).sum();
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
     let (mut a1, mut a2) = (0.0, 0.0);
     let mean: f64 = y[i - m..=i + m].iter().sum::<f64>() / (2.0 * mf + 1.0);
     for j in 0..=2 * m {
@@ -408,7 +445,10 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             (Some(th), _) => (th[s..e].to_vec(), true),
             (None, Some(x)) => (x.iter().map(|x| (x - x0) / k).collect(), false),
             (None, None) => {
-                bail!("{}: neither motor_angle_rad nor terminal_position_m: no motion to analyse", log.source)
+                bail!(
+                    "{}: neither motor_angle_rad nor terminal_position_m: no motion to analyse",
+                    log.source
+                )
             }
         };
         let mut iq_raw: Option<Vec<f64>> = get("current_q_a").map(|v| v[s..e].to_vec());
@@ -434,9 +474,18 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         let x_motor: Vec<f64> = theta_raw.iter().map(|th| x0 + k * th).collect();
         let xs: &[f64] = scale.unwrap_or(&x_motor);
         let rod_from_scale = phys.is_some() && scale.is_some() && encoder;
-        let mut seg =
-            Segment { run: run_idx, first_row: s + m, encoder, rod_from_scale, sg_m: m, dt, ..Default::default() };
-        let omega_max = (m..n - m).map(|i| sg(&theta_raw, i, m, dt).1.abs()).fold(0.0, f64::max);
+        let mut seg = Segment {
+            run: run_idx,
+            first_row: s + m,
+            encoder,
+            rod_from_scale,
+            sg_m: m,
+            dt,
+            ..Default::default()
+        };
+        let omega_max = (m..n - m)
+            .map(|i| sg(&theta_raw, i, m, dt).1.abs())
+            .fold(0.0, f64::max);
         let omega_th = (0.05 * omega_max).max(1e-9);
         let mut dir = 1.0;
         let mut last_rev = t[0];
@@ -450,8 +499,16 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         let mut flank_force = Vec::new();
         for i in m..n - m {
             let (th, om, al) = sg(&theta_raw, i, m, dt);
-            let (x, v, a) = if encoder || phys.is_some() { (x0 + k * th, k * om, k * al) } else { sg(xs, i, m, dt) };
-            let (x, v, a) = if scale.is_some() && !encoder { sg(xs, i, m, dt) } else { (x, v, a) };
+            let (x, v, a) = if encoder || phys.is_some() {
+                (x0 + k * th, k * om, k * al)
+            } else {
+                sg(xs, i, m, dt)
+            };
+            let (x, v, a) = if scale.is_some() && !encoder {
+                sg(xs, i, m, dt)
+            } else {
+                (x, v, a)
+            };
             let newdir = if om > omega_th {
                 1.0
             } else if om < -omega_th {
@@ -525,7 +582,13 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (Nominal::Regression(r), Some(q)) => {
                     let f = reg_features(&seg, seg.v_ref.len() - 1, fext, r.v_eps);
                     yt.push(q.0);
-                    rt.push(q.0 - f.iter().zip(&r.torque_coef).map(|(a, b)| a * b).sum::<f64>());
+                    rt.push(
+                        q.0 - f
+                            .iter()
+                            .zip(&r.torque_coef)
+                            .map(|(a, b)| a * b)
+                            .sum::<f64>(),
+                    );
                 }
                 _ => {}
             }
@@ -540,7 +603,13 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                     let y = sc[i] - re[i];
                     let g = reg_features(&seg, seg.v_ref.len() - 1, fext, r.v_eps);
                     yp.push(y);
-                    rp.push(y - g.iter().zip(&r.position_coef).map(|(a, b)| a * b).sum::<f64>());
+                    rp.push(
+                        y - g
+                            .iter()
+                            .zip(&r.position_coef)
+                            .map(|(a, b)| a * b)
+                            .sum::<f64>(),
+                    );
                 }
                 _ => {}
             }
@@ -567,9 +636,18 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         match phys {
             Some(p) => {
                 seg.flank = flank_deviation(&flank_force, p.rod_static_n);
-                seg.motion_weight = seg.omega.iter().map(|w| 1.0 - (-(w / STANDSTILL_RAD_S).powi(2)).exp()).collect();
+                seg.motion_weight = seg
+                    .omega
+                    .iter()
+                    .map(|w| 1.0 - (-(w / STANDSTILL_RAD_S).powi(2)).exp())
+                    .collect();
             }
-            None => seg.play = backlash_grid_m().into_iter().map(|b| play_deviation(&drive, b)).collect(),
+            None => {
+                seg.play = backlash_grid_m()
+                    .into_iter()
+                    .map(|b| play_deviation(&drive, b))
+                    .collect()
+            }
         }
         for (c, (y, r)) in [(yt, rt), (yp, rp), (yv, rv)].into_iter().enumerate() {
             if y.len() == nn && nn > 0 {
@@ -585,9 +663,16 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
 /// Fits the regression nominal on reference segments (built with a zero
 /// regression, which leaves the kinematics intact).
 pub fn fit_regression(log: &Log) -> Result<Regression> {
-    let zero = Regression { v_eps: 1e-3, torque_coef: vec![0.0; NREG], position_coef: vec![0.0; NREG] };
+    let zero = Regression {
+        v_eps: 1e-3,
+        torque_coef: vec![0.0; NREG],
+        position_coef: vec![0.0; NREG],
+    };
     let segs = build_segments(log, &Nominal::Regression(zero.clone()), 0.0)?;
-    let vmax = segs.iter().flat_map(|s| s.v_ref.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
+    let vmax = segs
+        .iter()
+        .flat_map(|s| s.v_ref.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
     let v_eps = (0.05 * vmax).max(1e-6);
     let solve = |ch: usize, feats: &dyn Fn(&Segment, usize) -> Vec<f64>, p: usize| -> Vec<f64> {
         let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
@@ -604,10 +689,25 @@ pub fn fit_regression(log: &Log) -> Result<Regression> {
                 }
             }
         }
-        ata.svd(true, true).solve(&atb, 1e-12).map(|v| v.iter().copied().collect()).unwrap_or_else(|_| vec![0.0; p])
+        ata.svd(true, true)
+            .solve(&atb, 1e-12)
+            .map(|v| v.iter().copied().collect())
+            .unwrap_or_else(|_| vec![0.0; p])
     };
     let fext = |s: &Segment, i: usize| s.f_load[i];
-    let tc = solve(TORQUE, &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(), NREG);
-    let pc = solve(POSITION, &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(), NREG);
-    Ok(Regression { v_eps, torque_coef: tc, position_coef: pc })
+    let tc = solve(
+        TORQUE,
+        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
+        NREG,
+    );
+    let pc = solve(
+        POSITION,
+        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
+        NREG,
+    );
+    Ok(Regression {
+        v_eps,
+        torque_coef: tc,
+        position_coef: pc,
+    })
 }

@@ -41,13 +41,23 @@ pub fn fft(re: &mut [f64], im: &mut [f64]) {
 /// Welch power spectrum (Hann, 50 % overlap) of the residual over segments:
 /// (frequencies Hz, PSD units²/Hz).
 pub fn welch(segs: &[&Segment], ch: usize) -> (Vec<f64>, Vec<f64>) {
-    let dt = segs.iter().find(|s| s.len() > 1).map_or(1e-3, |s| (s.t[s.len() - 1] - s.t[0]) / (s.len() - 1) as f64);
-    let min_len = segs.iter().filter(|s| s.r[ch].is_some()).map(|s| s.len()).min().unwrap_or(0);
+    let dt = segs
+        .iter()
+        .find(|s| s.len() > 1)
+        .map_or(1e-3, |s| (s.t[s.len() - 1] - s.t[0]) / (s.len() - 1) as f64);
+    let min_len = segs
+        .iter()
+        .filter(|s| s.r[ch].is_some())
+        .map(|s| s.len())
+        .min()
+        .unwrap_or(0);
     let mut nfft = 1024usize;
     while nfft > 16 && nfft > min_len {
         nfft /= 2;
     }
-    let win: Vec<f64> = (0..nfft).map(|k| 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / nfft as f64).cos()).collect();
+    let win: Vec<f64> = (0..nfft)
+        .map(|k| 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / nfft as f64).cos())
+        .collect();
     let wss: f64 = win.iter().map(|w| w * w).sum();
     let mut psd = vec![0.0; nfft / 2 + 1];
     let mut count = 0usize;
@@ -70,7 +80,9 @@ pub fn welch(segs: &[&Segment], ch: usize) -> (Vec<f64>, Vec<f64>) {
     if count > 0 {
         psd.iter_mut().for_each(|p| *p /= count as f64);
     }
-    let freqs = (0..psd.len()).map(|k| k as f64 / (nfft as f64 * dt)).collect();
+    let freqs = (0..psd.len())
+        .map(|k| k as f64 / (nfft as f64 * dt))
+        .collect();
     (freqs, psd)
 }
 
@@ -95,8 +107,17 @@ pub fn bands(freqs: &[f64], psd: &[f64]) -> Vec<Band> {
     edges
         .windows(2)
         .map(|w| {
-            let e: f64 = freqs.iter().zip(psd).filter(|(f, _)| **f >= w[0] && **f < w[1]).map(|(_, p)| p).sum();
-            Band { lo_hz: w[0], hi_hz: w[1].min(nyq), energy_pct: if total > 0.0 { 100.0 * e / total } else { 0.0 } }
+            let e: f64 = freqs
+                .iter()
+                .zip(psd)
+                .filter(|(f, _)| **f >= w[0] && **f < w[1])
+                .map(|(_, p)| p)
+                .sum();
+            Band {
+                lo_hz: w[0],
+                hi_hz: w[1].min(nyq),
+                energy_pct: if total > 0.0 { 100.0 * e / total } else { 0.0 },
+            }
         })
         .collect()
 }
@@ -140,7 +161,11 @@ pub fn top_windows(segs: &[&Segment], ch: usize, width_s: f64, k: usize) -> Vec<
     all.sort_by(|a, b| b.energy_pct.total_cmp(&a.energy_pct));
     all.truncate(k);
     for w in &mut all {
-        w.energy_pct = if total > 0.0 { 100.0 * w.energy_pct / total } else { 0.0 };
+        w.energy_pct = if total > 0.0 {
+            100.0 * w.energy_pct / total
+        } else {
+            0.0
+        };
     }
     all
 }
@@ -167,7 +192,15 @@ pub fn correlation(segs: &[&Segment], ch: usize, max_lag: usize) -> Correlation 
         let Some(r) = &s.r[ch] else { continue };
         let mr = r.iter().sum::<f64>() / r.len() as f64;
         // Input as its increments (a reference is non-stationary).
-        let du: Vec<f64> = (0..r.len()).map(|i| if i == 0 { 0.0 } else { s.input[i] - s.input[i - 1] }).collect();
+        let du: Vec<f64> = (0..r.len())
+            .map(|i| {
+                if i == 0 {
+                    0.0
+                } else {
+                    s.input[i] - s.input[i - 1]
+                }
+            })
+            .collect();
         let mu = du.iter().sum::<f64>() / du.len() as f64;
         let rc: Vec<f64> = r.iter().map(|x| x - mr).collect();
         let uc: Vec<f64> = du.iter().map(|x| x - mu).collect();
@@ -189,12 +222,23 @@ pub fn correlation(segs: &[&Segment], ch: usize, max_lag: usize) -> Correlation 
         su += uc.iter().map(|x| x * x).sum::<f64>();
     }
     let bound = 1.96 / (n.max(1) as f64).sqrt();
-    let rho: Vec<f64> = acf.iter().map(|a| if acf[0] > 0.0 { a / acf[0] } else { 0.0 }).collect();
+    let rho: Vec<f64> = acf
+        .iter()
+        .map(|a| if acf[0] > 0.0 { a / acf[0] } else { 0.0 })
+        .collect();
     let outside = rho[1..].iter().filter(|r| r.abs() > bound).count();
     let norm = (sr * su).sqrt();
-    let xr: Vec<f64> = xc.iter().map(|x| if norm > 0.0 { x / norm } else { 0.0 }).collect();
-    let (imax, xmax) =
-        xr.iter().enumerate().fold((0, 0.0f64), |(bi, bv), (i, v)| if v.abs() > bv.abs() { (i, *v) } else { (bi, bv) });
+    let xr: Vec<f64> = xc
+        .iter()
+        .map(|x| if norm > 0.0 { x / norm } else { 0.0 })
+        .collect();
+    let (imax, xmax) = xr.iter().enumerate().fold((0, 0.0f64), |(bi, bv), (i, v)| {
+        if v.abs() > bv.abs() {
+            (i, *v)
+        } else {
+            (bi, bv)
+        }
+    });
     let neg = xr[..max_lag].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let pos = xr[max_lag + 1..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     Correlation {

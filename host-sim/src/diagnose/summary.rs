@@ -2,8 +2,8 @@
 //! figure has one definition (`Figures`), used in the verdict, the tables
 //! and the JSON alike.
 
-use super::{disturbance, events, gates, replay, verdict};
 use super::log::Issue;
+use super::{disturbance, events, gates, replay, verdict};
 use super::{regions, spectrum};
 use std::collections::BTreeMap;
 
@@ -110,4 +110,3 @@ pub struct Summary {
     /// Closed-loop replay (with `--replay`).
     pub replay: Option<replay::Replay>,
 }
-

@@ -55,15 +55,30 @@ pub fn decide(
     structure: Option<&TimeStructure>,
     top_halves: Option<(f64, f64, f64)>,
 ) -> Verdict {
-    let shares: Vec<(String, f64)> =
-        ranking.iter().take(3).map(|r| (r.effect.clone(), r.primary_shrink_pct.max(0.0))).collect();
-    let share_txt = shares.iter().map(|(e, s)| format!("{e} {s:.1} % ({PRIMARY})")).collect::<Vec<_>>().join(", ");
+    let shares: Vec<(String, f64)> = ranking
+        .iter()
+        .take(3)
+        .map(|r| (r.effect.clone(), r.primary_shrink_pct.max(0.0)))
+        .collect();
+    let share_txt = shares
+        .iter()
+        .map(|(e, s)| format!("{e} {s:.1} % ({PRIMARY})"))
+        .collect::<Vec<_>>()
+        .join(", ");
     let (ch, why) = structure.map_or(("unknown".to_string(), String::new()), |t| {
-        (t.character.clone(), format!("{} channel: {}", t.channel, t.character_why))
+        (
+            t.character.clone(),
+            format!("{} channel: {}", t.channel, t.character_why),
+        )
     });
     let blocking: Vec<&Gate> = gates
         .iter()
-        .filter(|g| matches!(g.kind.as_str(), "training_is_reference" | "heldout_is_training" | "heldout_is_reference"))
+        .filter(|g| {
+            matches!(
+                g.kind.as_str(),
+                "training_is_reference" | "heldout_is_training" | "heldout_is_reference"
+            )
+        })
         .collect();
     let mut v = Verdict {
         remainder_character: ch.clone(),
@@ -80,7 +95,11 @@ pub fn decide(
     // "Most of the gap" is judged on the primary channel (the figure the
     // closed-world suite scores): the weighted figure averages channels,
     // so an effect confined to one channel can never reach most of it.
-    let lib_raw = if top.is_some() { stack_primary.max(0.0) } else { 0.0 };
+    let lib_raw = if top.is_some() {
+        stack_primary.max(0.0)
+    } else {
+        0.0
+    };
     let top_shrink = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
     let unstable = top_halves
         .filter(|(a, b, dp)| {
@@ -99,7 +118,9 @@ pub fn decide(
     // A piecewise-constant signal whose steps follow the logged signals is
     // a model error of the nominal, not an unmeasured force: not counted.
     let locked = dist.filter(|d| d.locked_to_signals);
-    let dist_total = dist.filter(|d| !d.locked_to_signals).map_or(0.0, |d| d.primary_shrink_pct.max(0.0));
+    let dist_total = dist
+        .filter(|d| !d.locked_to_signals)
+        .map_or(0.0, |d| d.primary_shrink_pct.max(0.0));
     if let Some(g) = gates.iter().find(|g| super::gates::baseline_broken(g)) {
         v.kind = "baseline_mismatch".into();
         v.explained_pct = lib.max(dist_total);
@@ -146,7 +167,11 @@ pub fn decide(
         let best = lib_raw.max(dist_total);
         v.kind = "unexplained".into();
         v.explained_pct = best;
-        v.explained_by = if dist_total > lib { "disturbance".into() } else { "library stack".into() };
+        v.explained_by = if dist_total > lib {
+            "disturbance".into()
+        } else {
+            "library stack".into()
+        };
         v.remaining_gap_pct = 100.0 - best;
         v.headline = format!(
             "**Unexplained**: no library effect with stable parameters, stack or disturbance removes most of the held-out gap — {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects explain at most: {share_txt}{}{}.",

@@ -51,29 +51,48 @@ pub fn random_effect(effect: Effect, rng: &mut ChaCha8Rng) -> TrueEffect {
                 (vec![small, big], 0.0)
             }
         }
-        Effect::Stribeck => (vec![rng.random_range(0.08..0.2)], rng.random_range(3.0..20.0)),
+        Effect::Stribeck => (
+            vec![rng.random_range(0.08..0.2)],
+            rng.random_range(3.0..20.0),
+        ),
         Effect::Backlash => (vec![rng.random_range(20e-6..100e-6)], 0.0),
         Effect::ScrewStiffness => (vec![rng.random_range(2.5e-8..9e-8)], 0.0),
         Effect::HertzContact => (vec![rng.random_range(1.5e-7..4e-7)], 0.0),
         Effect::CouplingCompliance => (vec![rng.random_range(3e-3..8e-3)], 0.0),
         Effect::LeadErrorCumulative => (vec![sym(rng, 50e-6, 200e-6)], 0.0),
         Effect::LeadErrorPerRev => {
-            let (a, ph) = (rng.random_range(4e-6..10e-6), rng.random_range(0.0..std::f64::consts::TAU));
+            let (a, ph) = (
+                rng.random_range(4e-6..10e-6),
+                rng.random_range(0.0..std::f64::consts::TAU),
+            );
             (vec![a * ph.cos(), a * ph.sin()], 0.0)
         }
         Effect::ThermalDrift => (vec![rng.random_range(6e-6..2e-5)], 0.0),
         Effect::Cogging => {
-            let (a, ph) = (rng.random_range(0.03..0.08), rng.random_range(0.0..std::f64::consts::TAU));
+            let (a, ph) = (
+                rng.random_range(0.03..0.08),
+                rng.random_range(0.0..std::f64::consts::TAU),
+            );
             let n = [6.0, 8.0, 12.0, 16.0, 24.0][rng.random_range(0..5)];
             (vec![a * ph.cos(), a * ph.sin()], n)
         }
         Effect::DeadTime => (vec![rng.random_range(0.3..1.2)], 0.0),
-        Effect::CurrentSensor => (vec![sym(rng, 0.02, 0.06), sym(rng, 0.1, 0.4), sym(rng, 0.1, 0.4)], 0.0),
+        Effect::CurrentSensor => (
+            vec![sym(rng, 0.02, 0.06), sym(rng, 0.1, 0.4), sym(rng, 0.1, 0.4)],
+            0.0,
+        ),
         Effect::EncoderEccentricity => {
-            let (a, ph) = (rng.random_range(2e-3..6e-3), rng.random_range(0.0..std::f64::consts::TAU));
+            let (a, ph) = (
+                rng.random_range(2e-3..6e-3),
+                rng.random_range(0.0..std::f64::consts::TAU),
+            );
             (vec![a * ph.cos(), a * ph.sin()], 0.0)
         }
         Effect::LoadOffset => (vec![sym(rng, 60.0, 200.0)], 0.0),
     };
-    TrueEffect { effect, params, hyper }
+    TrueEffect {
+        effect,
+        params,
+        hyper,
+    }
 }

@@ -105,7 +105,11 @@ fn run_exp(rig: &RigConfig, fx: &UnmodelledEffects, seed: u64) -> Log {
 pub fn library_logs(rig: &RigConfig, e: Effect, seed: u64) -> Logs {
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
     let fx = plant_effects(rig, &[random_effect(e, &mut rng)]);
-    Logs { train: run_exp(rig, &fx, 1000 + seed), held: run_exp(rig, &fx, 2000 + seed), held_events_s: Vec::new() }
+    Logs {
+        train: run_exp(rig, &fx, 1000 + seed),
+        held: run_exp(rig, &fx, 2000 + seed),
+        held_events_s: Vec::new(),
+    }
 }
 
 /// Pulses `[start, duration, level]` in log time over the log.
@@ -116,7 +120,8 @@ fn force_schedule(kind: Novel, rng: &mut ChaCha8Rng) -> Vec<[f64; 3]> {
         match kind {
             Novel::ForceSteps => {
                 let len = rng.random_range(0.8..2.0);
-                let lvl = rng.random_range(150.0..400.0) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                let lvl =
+                    rng.random_range(150.0..400.0) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
                 out.push([t, len, lvl]);
                 t += len;
             }
@@ -130,7 +135,11 @@ fn force_schedule(kind: Novel, rng: &mut ChaCha8Rng) -> Vec<[f64; 3]> {
     out
 }
 
-fn with_column(log: &Log, name: &str, f: impl Fn(&[f64], &BTreeMap<String, Vec<f64>>) -> Vec<f64>) -> Log {
+fn with_column(
+    log: &Log,
+    name: &str,
+    f: impl Fn(&[f64], &BTreeMap<String, Vec<f64>>) -> Vec<f64>,
+) -> Log {
     let mut cols = log.columns.clone();
     let new = f(&cols[name], &log.columns);
     cols.insert(name.into(), new);
@@ -158,16 +167,36 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 logs.push(run_exp(rig, &fx, s));
             }
             let held = logs.pop().expect("two");
-            Logs { train: logs.pop().expect("two"), held, held_events_s: held_events }
+            Logs {
+                train: logs.pop().expect("two"),
+                held,
+                held_events_s: held_events,
+            }
         }
         Novel::SensorDelay => {
             let d = rng.random_range(2..=5usize);
-            let delay = |v: &[f64], _: &BTreeMap<String, Vec<f64>>| (0..v.len()).map(|i| v[i.saturating_sub(d)]).collect();
-            let f = |l: Log| with_column(&with_column(&l, "motor_angle_rad", delay), "terminal_position_m", delay);
-            Logs { train: f(run_exp(rig, &none, 1000 + seed)), held: f(run_exp(rig, &none, 2000 + seed)), held_events_s: vec![] }
+            let delay = |v: &[f64], _: &BTreeMap<String, Vec<f64>>| {
+                (0..v.len()).map(|i| v[i.saturating_sub(d)]).collect()
+            };
+            let f = |l: Log| {
+                with_column(
+                    &with_column(&l, "motor_angle_rad", delay),
+                    "terminal_position_m",
+                    delay,
+                )
+            };
+            Logs {
+                train: f(run_exp(rig, &none, 1000 + seed)),
+                held: f(run_exp(rig, &none, 2000 + seed)),
+                held_events_s: vec![],
+            }
         }
         Novel::StructuralResonance => {
-            let (fr, c_f, zeta) = (rng.random_range(35.0..60.0), rng.random_range(2e-9..5e-9), 0.03);
+            let (fr, c_f, zeta) = (
+                rng.random_range(35.0..60.0),
+                rng.random_range(2e-9..5e-9),
+                0.03,
+            );
             let wr = std::f64::consts::TAU * fr;
             // The scale's mount on a frame mode driven by the screw's
             // thrust K_t i_q / (L/2π): y'' + 2ζω y' + ω² y = ω² c_f F; the
@@ -189,7 +218,11 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                     .collect()
             };
             let f = |l: Log| with_column(&l, "terminal_position_m", res);
-            Logs { train: f(run_exp(rig, &none, 1000 + seed)), held: f(run_exp(rig, &none, 2000 + seed)), held_events_s: vec![] }
+            Logs {
+                train: f(run_exp(rig, &none, 1000 + seed)),
+                held: f(run_exp(rig, &none, 2000 + seed)),
+                held_events_s: vec![],
+            }
         }
         Novel::TorqueConstantDrop => {
             // NdFeB flux −0.12 %/K; the magnets warm by ΔT_max (1 − e^{−t/τ})
@@ -200,19 +233,32 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
             let drop = move |t0: f64| {
                 move |i: &[f64], cols: &BTreeMap<String, Vec<f64>>| {
                     let t = &cols["time_s"];
-                    (0..i.len()).map(|k| i[k] / (1.0 - beta * dtm * (1.0 - (-(t[k] + t0) / tau).exp()))).collect()
+                    (0..i.len())
+                        .map(|k| i[k] / (1.0 - beta * dtm * (1.0 - (-(t[k] + t0) / tau).exp())))
+                        .collect()
                 }
             };
             Logs {
                 train: with_column(&run_exp(rig, &none, 1000 + seed), "current_q_a", drop(0.0)),
-                held: with_column(&run_exp(rig, &none, 2000 + seed), "current_q_a", drop(DURATION_S)),
+                held: with_column(
+                    &run_exp(rig, &none, 2000 + seed),
+                    "current_q_a",
+                    drop(DURATION_S),
+                ),
                 held_events_s: vec![],
             }
         }
         Novel::CurrentSaturation => {
             let train = run_exp(rig, &none, 1000 + seed);
-            let lim = 0.6 * train.get("current_q_a").expect("current").iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let clip = move |i: &[f64], _: &BTreeMap<String, Vec<f64>>| i.iter().map(|v| v.clamp(-lim, lim)).collect();
+            let lim = 0.6
+                * train
+                    .get("current_q_a")
+                    .expect("current")
+                    .iter()
+                    .fold(0.0f64, |m, v| m.max(v.abs()));
+            let clip = move |i: &[f64], _: &BTreeMap<String, Vec<f64>>| {
+                i.iter().map(|v| v.clamp(-lim, lim)).collect()
+            };
             Logs {
                 train: with_column(&train, "current_q_a", clip),
                 held: with_column(&run_exp(rig, &none, 2000 + seed), "current_q_a", clip),
@@ -221,16 +267,25 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
         }
         Novel::EncoderMiscount => {
             let burst = |l: Log, rng: &mut ChaCha8Rng| {
-                let (tb, lost) = (rng.random_range(1.0..DURATION_S - 1.0), rng.random_range(0.02..0.06));
+                let (tb, lost) = (
+                    rng.random_range(1.0..DURATION_S - 1.0),
+                    rng.random_range(0.02..0.06),
+                );
                 let f = move |a: &[f64], cols: &BTreeMap<String, Vec<f64>>| {
                     let t = &cols["time_s"];
-                    (0..a.len()).map(|k| a[k] - lost * ((t[k] - tb) / 0.04).clamp(0.0, 1.0)).collect()
+                    (0..a.len())
+                        .map(|k| a[k] - lost * ((t[k] - tb) / 0.04).clamp(0.0, 1.0))
+                        .collect()
                 };
                 (with_column(&l, "motor_angle_rad", f), tb)
             };
             let (train, _) = burst(run_exp(rig, &none, 1000 + seed), &mut rng);
             let (held, tb) = burst(run_exp(rig, &none, 2000 + seed), &mut rng);
-            Logs { train, held, held_events_s: vec![tb] }
+            Logs {
+                train,
+                held,
+                held_events_s: vec![tb],
+            }
         }
     }
 }
@@ -247,5 +302,9 @@ pub fn mismatched_rig(rig: &RigConfig) -> RigConfig {
 /// The nominal rig's logs (no effect).
 pub fn nominal_logs(rig: &RigConfig, seed: u64) -> Logs {
     let none = UnmodelledEffects::default();
-    Logs { train: run_exp(rig, &none, 1000 + seed), held: run_exp(rig, &none, 2000 + seed), held_events_s: vec![] }
+    Logs {
+        train: run_exp(rig, &none, 1000 + seed),
+        held: run_exp(rig, &none, 2000 + seed),
+        held_events_s: vec![],
+    }
 }

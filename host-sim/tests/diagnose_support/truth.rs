@@ -25,7 +25,9 @@ pub fn plant_effects(rig: &RigConfig, truth: &[TrueEffect]) -> UnmodelledEffects
         let q = &t.params;
         match t.effect {
             Effect::CoulombAsym => (u.coulomb_pos_n_m, u.coulomb_neg_n_m) = (q[0], q[1]),
-            Effect::ViscousAsym => (u.viscous_pos_n_m_s_rad, u.viscous_neg_n_m_s_rad) = (q[0], q[1]),
+            Effect::ViscousAsym => {
+                (u.viscous_pos_n_m_s_rad, u.viscous_neg_n_m_s_rad) = (q[0], q[1])
+            }
             Effect::Stribeck => (u.stribeck_torque_n_m, u.stribeck_speed_rad_s) = (q[0], t.hyper),
             Effect::Backlash => u.backlash_m = q[0],
             Effect::ScrewStiffness => u.screw_compliance_m_per_n_m = q[0],
@@ -34,14 +36,28 @@ pub fn plant_effects(rig: &RigConfig, truth: &[TrueEffect]) -> UnmodelledEffects
             Effect::LeadErrorCumulative => u.lead_error_m_per_m = q[0],
             Effect::LeadErrorPerRev => (u.lead_sin_m, u.lead_cos_m) = (q[0], q[1]),
             Effect::ThermalDrift => u.thermal_strain_per_s = q[0],
-            Effect::Cogging => (u.cogging_sin_n_m, u.cogging_cos_n_m, u.cogging_periods_per_rev) = (q[0], q[1], t.hyper),
+            Effect::Cogging => {
+                (
+                    u.cogging_sin_n_m,
+                    u.cogging_cos_n_m,
+                    u.cogging_periods_per_rev,
+                ) = (q[0], q[1], t.hyper)
+            }
             Effect::DeadTime => {
-                u.dead_time_s = q[0] / (rig.plant.integration.pwm_frequency_hz * rig.plant.inverter.nominal_bus_voltage_v)
+                u.dead_time_s = q[0]
+                    / (rig.plant.integration.pwm_frequency_hz
+                        * rig.plant.inverter.nominal_bus_voltage_v)
             }
             Effect::CurrentSensor => {
-                (u.current_gain_error, u.current_offset_alpha_a, u.current_offset_beta_a) = (q[0], q[1], q[2])
+                (
+                    u.current_gain_error,
+                    u.current_offset_alpha_a,
+                    u.current_offset_beta_a,
+                ) = (q[0], q[1], q[2])
             }
-            Effect::EncoderEccentricity => (u.encoder_ecc_sin_rad, u.encoder_ecc_cos_rad) = (q[0], q[1]),
+            Effect::EncoderEccentricity => {
+                (u.encoder_ecc_sin_rad, u.encoder_ecc_cos_rad) = (q[0], q[1])
+            }
             Effect::LoadOffset => u.load_offset_n = q[0],
         }
     }
@@ -51,5 +67,6 @@ pub fn plant_effects(rig: &RigConfig, truth: &[TrueEffect]) -> UnmodelledEffects
 /// A log of the truth rig on random experiment `seed` (`duration_s` logged).
 pub fn truth_log(rig: &RigConfig, truth: &[TrueEffect], seed: u64, duration_s: f64) -> Log {
     let exp = Experiment::random(rig, seed, duration_s);
-    run(rig, &plant_effects(rig, truth), &exp, seed).unwrap_or_else(|e| panic!("truth rig {truth:?}, seed {seed}: {e}"))
+    run(rig, &plant_effects(rig, truth), &exp, seed)
+        .unwrap_or_else(|e| panic!("truth rig {truth:?}, seed {seed}: {e}"))
 }
