@@ -130,8 +130,6 @@ async fn run() -> Option<Watchdog> {
         comms::CAN_NOMINAL_BPS,
         comms::CAN_DATA_BPS
     );
-    let boot_params = load_params(&mut store);
-    let params = *boot_params.get();
     if let Some(irq) = masking::unmasked_interrupt(pac::Interrupt::ADC1_2 as u16) {
         error!("interrupt {=u16} sits at the PWM interrupt's priority: critical sections do not mask it", irq);
     }
@@ -153,7 +151,7 @@ async fn run() -> Option<Watchdog> {
     let status = board.status();
     info!(
         "PWM {=f32} Hz centre-aligned, dead time {=u32} ns, HW overcurrent break: {}",
-        params.rates.pwm_frequency_hz,
+        board::VALID_PARAMS.get().rates.pwm_frequency_hz,
         hw::DEAD_TIME_NS,
         status.hw_overcurrent_armed
     );
@@ -181,8 +179,14 @@ async fn run() -> Option<Watchdog> {
     info!("current offsets (ADC codes) U/V/W = {}", offsets);
 
     // The saved set (schema-checked, validated, lowered to the board's
-    // ratings) or the image's, validated when it was built.
+    // ratings) or the image's, validated when it was built. Read here, after
+    // the last start-up wait, so that neither copy is held across an
+    // `await` (each would be ≈ 460 bytes of the main task's state for ever).
+    let boot_params = load_params(&mut store);
+    let params = *boot_params.get();
     let mut controller = Controller::from_validated(boot_params);
+    // The capture store, before the controller goes to the interrupt.
+    controller.attach_capture_store(&link::CAPTURE);
     if watchdog_reset {
         controller.report_watchdog_reset();
     }
