@@ -186,13 +186,13 @@ impl Server {
                 let mut digits = [0u8; 5];
                 let mut n = index;
                 let mut k = digits.len();
-                loop {
-                    k -= 1;
+                while k > 0 {
+                    k = k.wrapping_sub(1);
                     if let Some(d) = digits.get_mut(k) {
-                        *d = b'0' + (n % 10) as u8;
+                        *d = b'0'.wrapping_add(n.checked_rem(10).unwrap_or(0) as u8);
                     }
-                    n /= 10;
-                    if n == 0 || k == 0 {
+                    n = n.checked_div(10).unwrap_or(0);
+                    if n == 0 {
                         break;
                     }
                 }
