@@ -130,8 +130,6 @@ async fn run() -> Option<Watchdog> {
         comms::CAN_NOMINAL_BPS,
         comms::CAN_DATA_BPS
     );
-    let boot_params = load_params(&mut store);
-    let params = *boot_params.get();
     if let Some(irq) = masking::unmasked_interrupt(pac::Interrupt::ADC1_2 as u16) {
         error!("interrupt {=u16} sits at the PWM interrupt's priority: critical sections do not mask it", irq);
     }
@@ -153,7 +151,7 @@ async fn run() -> Option<Watchdog> {
     let status = board.status();
     info!(
         "PWM {=f32} Hz centre-aligned, dead time {=u32} ns, HW overcurrent break: {}",
-        params.rates.pwm_frequency_hz,
+        board::VALID_PARAMS.get().rates.pwm_frequency_hz,
         hw::DEAD_TIME_NS,
         status.hw_overcurrent_armed
     );
@@ -180,30 +178,10 @@ async fn run() -> Option<Watchdog> {
     };
     info!("current offsets (ADC codes) U/V/W = {}", offsets);
 
-    // The saved set (schema-checked, validated, lowered to the board's
-    // ratings) or the image's, validated when it was built.
-    let mut controller = Controller::from_validated(boot_params);
-    if watchdog_reset {
-        controller.report_watchdog_reset();
-    }
-    let faults = controller.faults();
-    if !faults.is_empty() {
-        error!("controller refuses to run: faults {}", faults);
-    }
-    // The one switch for moving unasked after power-up or any reset:
-    // `control.startup.run_at_power_up` (default false). A latched fault
-    // (a watchdog reset among them) refuses it: the drive then waits.
-    if params.startup.run_at_power_up {
-        match controller.power_up() {
-            Ok(_) => warn!("startup.run_at_power_up: the drive starts by itself"),
-            Err(e) => warn!("startup.run_at_power_up refused: {}", e),
-        }
-    } else {
-        info!("ready: waiting for a command (bridge off, brake closed)");
-    }
-    if link::install_controller(controller).is_err() {
-        error!("a controller was installed already");
-    }
+    // In a function of its own: the controller (≈ 1.3 KB) and the boot
+    // parameters live on its stack frame, not in the main task's state
+    // (an async body keeps every local whose scope spans an `await`).
+    let params = install_controller(&mut store, watchdog_reset);
 
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
     let mut tick: u32 = 0;
@@ -212,6 +190,8 @@ async fn run() -> Option<Watchdog> {
     let mut reader = FrameReader::new();
     let params_cache = ParamsCache::new(params);
     let mut rx_bytes = [0u8; 64];
+    // One transmit buffer for every frame sent (replies, telemetry).
+    let mut out = [0u8; proto::FRAME_MAX];
     let mut next_telemetry: Option<Instant> = None;
     let mut can_state = CanStream::default();
     loop {
@@ -226,10 +206,16 @@ async fn run() -> Option<Watchdog> {
             Either4::First(()) => {}
             Either4::Second(Ok(n)) => {
                 for &byte in rx_bytes.iter().take(n) {
-                    let mut drive = BoardDrive::new(&mut board, &params_cache);
-                    if let Some(reply) = server.receive(&mut reader, byte, &mut drive, &mut store) {
-                        send_frame(&mut uart_tx, &reply).await;
-                    }
+                    // Encoded before the `await`: only the bytes are held
+                    // while the DMA sends them, not the reply as well.
+                    let len = {
+                        let mut drive = BoardDrive::new(&mut board, &params_cache);
+                        match server.receive(&mut reader, byte, &mut drive, &mut store) {
+                            Some(reply) => encode_frame(&reply, &mut out),
+                            None => 0,
+                        }
+                    };
+                    send_bytes(&mut uart_tx, out.get(..len).unwrap_or(&[])).await;
                 }
                 next_telemetry = telemetry_schedule(&server, next_telemetry);
                 dog.feed_if_isr_alive();
@@ -259,9 +245,11 @@ async fn run() -> Option<Watchdog> {
             Either4::Fourth(()) => {
                 let now = next_telemetry.unwrap_or_else(Instant::now);
                 next_telemetry = telemetry_schedule(&server, Some(now));
-                if let Some((t, _)) = board.snapshot().drive() {
-                    send_frame(&mut uart_tx, &DriveFrame::Telemetry(server.telemetry_frame(&t))).await;
-                }
+                let len = match board.snapshot().drive() {
+                    Some((t, _)) => encode_frame(&DriveFrame::Telemetry(server.telemetry_frame(&t)), &mut out),
+                    None => 0,
+                };
+                send_bytes(&mut uart_tx, out.get(..len).unwrap_or(&[])).await;
                 continue;
             }
         }
@@ -310,6 +298,42 @@ async fn run() -> Option<Watchdog> {
             );
         }
     }
+}
+
+/// Builds the controller from the saved set (schema-checked, validated,
+/// lowered to the board's ratings) or the image's (validated when it was
+/// built), attaches the capture store, applies
+/// `control.startup.run_at_power_up` and hands it to the interrupt; the
+/// parameters it runs with.
+#[inline(never)]
+fn install_controller(store: &mut FlashStore, watchdog_reset: bool) -> servo_core::ControlParams {
+    let boot_params = load_params(store);
+    let params = *boot_params.get();
+    let mut controller = Controller::from_validated(boot_params);
+    // The capture store, before the controller goes to the interrupt.
+    controller.attach_capture_store(&link::CAPTURE);
+    if watchdog_reset {
+        controller.report_watchdog_reset();
+    }
+    let faults = controller.faults();
+    if !faults.is_empty() {
+        error!("controller refuses to run: faults {}", faults);
+    }
+    // The one switch for moving unasked after power-up or any reset:
+    // `control.startup.run_at_power_up` (default false). A latched fault
+    // (a watchdog reset among them) refuses it: the drive then waits.
+    if params.startup.run_at_power_up {
+        match controller.power_up() {
+            Ok(_) => warn!("startup.run_at_power_up: the drive starts by itself"),
+            Err(e) => warn!("startup.run_at_power_up refused: {}", e),
+        }
+    } else {
+        info!("ready: waiting for a command (bridge off, brake closed)");
+    }
+    if link::install_controller(controller).is_err() {
+        error!("a controller was installed already");
+    }
+    params
 }
 
 /// The parameters to start with: the record saved in flash if it is whole,
@@ -367,13 +391,17 @@ fn telemetry_schedule(server: &Server, from: Option<Instant>) -> Option<Instant>
     }
 }
 
-/// Encodes `frame` (COBS, CRC, delimiter) and writes it to USART2 by DMA.
-async fn send_frame(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, frame: &DriveFrame) {
-    let mut buf = [0u8; proto::FRAME_MAX];
-    if let Some(bytes) = proto::encode(frame, &mut buf) {
-        if tx.write(bytes).await.is_err() {
-            warn!("USART2 transmit failed");
-        }
+/// Encodes `frame` (COBS, CRC, delimiter) into `buf`; its length (0 if it
+/// does not fit, which the protocol tests rule out).
+#[inline(never)]
+fn encode_frame(frame: &DriveFrame, buf: &mut [u8; proto::FRAME_MAX]) -> usize {
+    proto::encode(frame, buf).map_or(0, |bytes| bytes.len())
+}
+
+/// Writes `bytes` to USART2 by DMA (nothing for an empty slice).
+async fn send_bytes(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, bytes: &[u8]) {
+    if !bytes.is_empty() && tx.write(bytes).await.is_err() {
+        warn!("USART2 transmit failed");
     }
 }
 

@@ -51,7 +51,16 @@ fn every_leaf_has_a_path_a_type_and_a_value() {
     assert_eq!(paths::get(&ControlParams::DEFAULT, "control.motor.pole_pairs"), Ok(Value::U32(4)));
     assert_eq!(paths::get(&ControlParams::DEFAULT, "control.speed_pi.kp"), Ok(Value::F32(ControlParams::DEFAULT.speed_pi.kp)));
     let e = param_error(ask(&mut srv, &mut d, &mut s, Request::ParamName { index: count }));
-    assert!(matches!(e, Error::UnknownPath { .. }), "{e:?}");
+    let Error::UnknownPath { path } = e else { panic!("{e:?}") };
+    assert_eq!(path.as_str(), format!("control[{count}]"));
+    for index in [0u16, 7, 10, 65535] {
+        if usize::from(index) < usize::from(count) {
+            continue;
+        }
+        let e = param_error(ask(&mut srv, &mut d, &mut s, Request::ParamName { index }));
+        let Error::UnknownPath { path } = e else { panic!("{e:?}") };
+        assert_eq!(path.as_str(), format!("control[{index}]"));
+    }
 }
 
 #[test]

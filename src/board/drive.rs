@@ -12,10 +12,10 @@ use core::cell::{Cell, RefCell};
 use servo_core::controller::ApplyError;
 use servo_core::params::ValidatedParams;
 use servo_core::protocol::server::text;
-use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, TestSignal, Text};
+use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, TestSignal, Text, CAPTURE_CHUNK_MAX};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Readiness};
 
-use super::link::Reply;
+use super::link::{BulkIn, BulkOut, CaptureOp, Reply, CAPTURE};
 use super::ServoBoard;
 
 /// `ApplyError` field named when the interrupt did not answer (the link's
@@ -75,10 +75,9 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
         let Ok(mut board) = self.board.try_borrow_mut() else {
             return DriveStatus::default();
         };
-        match board.snapshot().drive() {
-            // TODO(core-scope): `test_running` from the snapshot once the
-            // core reports a running test signal.
-            Some((telemetry, _moving)) => DriveStatus { telemetry, test_running: false },
+        let snapshot = board.snapshot();
+        match snapshot.drive() {
+            Some((telemetry, _moving)) => DriveStatus { telemetry, test_running: snapshot.test_running },
             None => DriveStatus::default(),
         }
     }
@@ -120,16 +119,53 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
         }
     }
 
-    fn capture(&mut self, _request: &CaptureRequest) -> Result<CaptureReply, Text> {
-        // TODO(core-scope): pass the request through the link to the
-        // interrupt, which calls `Controller::capture_configure` /
-        // `capture_trigger` / `capture_status` / `capture_read` (branch
-        // core-scope) and answers within the period.
-        Err(text("capture: not in this image yet (needs Controller::capture_*, branch core-scope)"))
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+        // `Read` in thread mode, straight from the store: the layout of the
+        // done capture comes from the interrupt (one request), the values
+        // from `CAPTURE`, which the interrupt no longer writes once the
+        // capture is done (until the next `Configure`, which only this
+        // thread sends). No per-chunk decoding in the interrupt.
+        let op = match request {
+            CaptureRequest::Read { signal, start, count } => return self.read_capture(*signal, *start, *count),
+            r => CaptureOp::of(r).ok_or_else(|| text("capture: more signals than the board records"))?,
+        };
+        match self.bulk(BulkIn::Capture(op))? {
+            BulkOut::Done => Ok(CaptureReply::Ok),
+            BulkOut::CaptureStatus(s) => Ok(CaptureReply::Status(s)),
+            _ => Err(text(NO_ANSWER_FIELD)),
+        }
     }
 
-    fn test_signal(&mut self, _signal: &TestSignal) -> Result<(), Text> {
-        // TODO(core-scope): through the link, `Controller::start_test`.
-        Err(text("test signals: not in this image yet (needs Controller::start_test, branch core-scope)"))
+    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Text> {
+        match self.bulk(BulkIn::Test(*signal))? {
+            BulkOut::Done => Ok(()),
+            _ => Err(text(NO_ANSWER_FIELD)),
+        }
+    }
+}
+
+impl<B: ServoBoard> BoardDrive<'_, B> {
+    /// One request through the bulk slots; a refusal's reason, or the link's
+    /// failure, as the error text.
+    #[inline(never)]
+    fn bulk(&mut self, payload: BulkIn) -> Result<BulkOut, Text> {
+        match self.board.get_mut().bulk(payload) {
+            Ok(BulkOut::Refused(why)) => Err(why.text()),
+            Ok(out) => Ok(out),
+            Err(_) => Err(text(NO_ANSWER_FIELD)),
+        }
+    }
+
+    #[inline(never)]
+    fn read_capture(&mut self, signal: u8, start: u16, count: u8) -> Result<CaptureReply, Text> {
+        let BulkOut::CaptureLayout(layout) = self.bulk(BulkIn::Capture(CaptureOp::Layout))? else {
+            return Err(text(NO_ANSWER_FIELD));
+        };
+        let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
+        let want = usize::from(count).min(CAPTURE_CHUNK_MAX);
+        let out = buf.get_mut(..want).unwrap_or(&mut []);
+        let n = CAPTURE.read(&layout, signal, start, out).map_err(text)?;
+        let values = servo_core::protocol::heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| text("capture chunk too long"))?;
+        Ok(CaptureReply::Data { signal, start, values })
     }
 }

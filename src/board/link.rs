@@ -22,7 +22,11 @@
 use cortex_m::peripheral::DWT;
 use servo_core::mailbox::{Handoff, Slot, SlotReceiver, SlotSender, TripleBuffer, TripleReader, TripleWriter};
 use servo_core::controller::ApplyError;
+use servo_core::protocol::drive::on_controller;
+use servo_core::protocol::CaptureReply;
+use servo_core::capture::{CaptureLayout, CaptureStore};
 use servo_core::params::ValidatedParams;
+use servo_core::protocol::{CaptureRequest, CaptureStatus, Signal, TestSignal, Text, CAPTURE_SIGNALS_MAX, TEXT_MAX};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
 
 use super::BoardStatus;
@@ -53,6 +57,10 @@ pub enum Request {
     /// (`Controller::apply_params`, between two steps: the whole set or
     /// nothing).
     ApplyParams,
+    /// Serve the capture or test-signal request waiting in the bulk-in slot
+    /// ([`BulkIn::Capture`], [`BulkIn::Test`]); the answer goes to the
+    /// bulk-out slot.
+    Bulk,
 }
 
 /// The interrupt's answer to one [`Request`].
@@ -69,10 +77,126 @@ pub enum Reply {
     Drive(Result<CommandOutcome, CommandError>),
     /// No controller is installed yet: the command went nowhere.
     NoDrive,
-    /// `ReadParams`: the set is in the parameter-out slot.
-    Params,
     /// `ApplyParams`: the controller's answer.
     Applied(Result<(), ApplyError>),
+    /// `Bulk`: the answer is in the bulk-out slot.
+    Bulk,
+}
+
+/// What travels in the bulk-in slot (thread mode → interrupt): the large or
+/// rare request payloads, kept out of [`Request`] so the request slot the
+/// interrupt checks every period stays a few bytes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum BulkIn {
+    /// A whole validated set for `ApplyParams`.
+    Params(ValidatedParams),
+    /// A capture request (`Request::Bulk`); `Read` is served in thread mode
+    /// from the store (see [`CaptureOp::Layout`]).
+    Capture(CaptureOp),
+    /// Start a test signal (`Request::Bulk`).
+    Test(TestSignal),
+}
+
+/// A capture request in a `Copy` form (the protocol's `CaptureRequest`
+/// holds a `heapless::Vec`), rebuilt in the interrupt for
+/// `servo_core::protocol::drive::on_controller::capture`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CaptureOp {
+    Configure {
+        signals: [Signal; CAPTURE_SIGNALS_MAX],
+        count: u8,
+        decimation: u16,
+        samples: u16,
+        pre_trigger: u16,
+        trigger: servo_core::protocol::CaptureTrigger,
+    },
+    Trigger,
+    Status,
+    /// The layout of a done capture (`Controller::capture_layout`): thread
+    /// mode then reads the store itself, the interrupt writes nothing to it
+    /// until the next `Configure`.
+    Layout,
+}
+
+impl CaptureOp {
+    /// The `Copy` form of a configure/trigger/status request; `None` for
+    /// `Read` (thread mode serves it) and for more signals than fit.
+    pub fn of(request: &CaptureRequest) -> Option<Self> {
+        Some(match request {
+            CaptureRequest::Configure(c) => {
+                let mut signals = [Signal::CurrentQ; CAPTURE_SIGNALS_MAX];
+                signals.get_mut(..c.signals.len())?.copy_from_slice(&c.signals);
+                Self::Configure {
+                    signals,
+                    count: u8::try_from(c.signals.len()).ok()?,
+                    decimation: c.decimation,
+                    samples: c.samples,
+                    pre_trigger: c.pre_trigger,
+                    trigger: c.trigger,
+                }
+            }
+            CaptureRequest::Trigger => Self::Trigger,
+            CaptureRequest::Status => Self::Status,
+            CaptureRequest::Read { .. } => return None,
+        })
+    }
+
+    /// The protocol's request again (`None` for `Layout`).
+    pub fn request(&self) -> Option<CaptureRequest> {
+        Some(match *self {
+            Self::Configure { signals, count, decimation, samples, pre_trigger, trigger } => {
+                CaptureRequest::Configure(servo_core::protocol::CaptureConfig {
+                    signals: servo_core::protocol::heapless::Vec::from_slice(signals.get(..usize::from(count))?).ok()?,
+                    decimation,
+                    samples,
+                    pre_trigger,
+                    trigger,
+                })
+            }
+            Self::Trigger => CaptureRequest::Trigger,
+            Self::Status => CaptureRequest::Status,
+            Self::Layout => return None,
+        })
+    }
+}
+
+/// What travels in the bulk-out slot (interrupt → thread mode).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum BulkOut {
+    /// `ReadParams`: the controller's set.
+    Params(ControlParams),
+    /// Configured, triggered, test started.
+    Done,
+    CaptureStatus(CaptureStatus),
+    CaptureLayout(CaptureLayout),
+    /// Refused, with the reason.
+    Refused(ReplyText),
+}
+
+/// A reply text in a `Copy` form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReplyText {
+    len: u8,
+    bytes: [u8; TEXT_MAX],
+}
+
+impl ReplyText {
+    pub fn of(t: &Text) -> Self {
+        let mut bytes = [0u8; TEXT_MAX];
+        let src = t.as_bytes();
+        let n = src.len().min(TEXT_MAX);
+        if let (Some(d), Some(s)) = (bytes.get_mut(..n), src.get(..n)) {
+            d.copy_from_slice(s);
+        }
+        Self { len: n as u8, bytes }
+    }
+
+    pub fn text(&self) -> Text {
+        let s = self.bytes.get(..usize::from(self.len)).and_then(|b| core::str::from_utf8(b).ok()).unwrap_or("");
+        servo_core::protocol::server::text(s)
+    }
 }
 
 /// A request or reply with the caller's sequence number.
@@ -121,6 +245,8 @@ pub struct Snapshot {
     pub(crate) drive_installed: bool,
     /// The drive's telemetry and whether a move is in progress.
     pub(crate) drive_record: (Telemetry, bool),
+    /// A test signal is running (`Controller::test_running`).
+    pub test_running: bool,
 }
 
 impl Snapshot {
@@ -161,6 +287,7 @@ impl Snapshot {
             },
             false,
         ),
+        test_running: false,
     };
 
     /// The drive's telemetry and whether a move is in progress; `None` until
@@ -173,11 +300,19 @@ impl Snapshot {
 static REQUESTS: Slot<Envelope<Request>> = Slot::new();
 static REPLIES: Slot<Envelope<Reply>> = Slot::new();
 static SNAPSHOTS: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::INITIAL);
-/// Parameter sets in and out: apart from `REQUESTS` so that a request
-/// (and the interrupt's check for one, every period) stays a few bytes, and
-/// the ≈ 600-byte copy happens only in the period that needs it.
-static PARAMS_IN: Slot<ValidatedParams> = Slot::new();
-static PARAMS_OUT: Slot<ControlParams> = Slot::new();
+/// Parameter sets, capture and test requests in and out: apart from
+/// `REQUESTS` so that a request (and the interrupt's check for one, every
+/// period) stays a few bytes, and the ≈ 460-byte copy happens only in the
+/// period that needs it. One slot each way serves parameters, captures and
+/// test signals (thread mode waits for one reply at a time).
+static BULK_IN: Slot<BulkIn> = Slot::new();
+static BULK_OUT: Slot<BulkOut> = Slot::new();
+/// The capture store (8 KiB of `.bss`): the interrupt writes it through the
+/// controller (`Controller::attach_capture_store`, before the controller is
+/// installed); thread mode reads a done capture straight from it
+/// (`CaptureOp::Layout`), since the interrupt writes nothing to it once the
+/// capture is done and until the next configure.
+pub static CAPTURE: CaptureStore = CaptureStore::new();
 /// The controller, moved into the interrupt once.
 static CONTROLLER: Handoff<Controller> = Handoff::new();
 
@@ -186,8 +321,8 @@ pub struct IsrLink {
     requests: SlotReceiver<'static, Envelope<Request>>,
     replies: SlotSender<'static, Envelope<Reply>>,
     snapshots: TripleWriter<'static, Snapshot>,
-    params_in: SlotReceiver<'static, ValidatedParams>,
-    params_out: SlotSender<'static, ControlParams>,
+    bulk_in: SlotReceiver<'static, BulkIn>,
+    bulk_out: SlotSender<'static, BulkOut>,
     controller: Option<&'static mut Controller>,
     published_seq: u32,
 }
@@ -197,8 +332,8 @@ pub struct ThreadLink {
     requests: SlotSender<'static, Envelope<Request>>,
     replies: SlotReceiver<'static, Envelope<Reply>>,
     snapshots: TripleReader<'static, Snapshot>,
-    params_in: SlotSender<'static, ValidatedParams>,
-    params_out: SlotReceiver<'static, ControlParams>,
+    bulk_in: SlotSender<'static, BulkIn>,
+    bulk_out: SlotReceiver<'static, BulkOut>,
     next_seq: u32,
 }
 
@@ -208,16 +343,16 @@ pub fn split() -> Option<(ThreadLink, IsrLink)> {
     let (req_tx, req_rx) = REQUESTS.split()?;
     let (rep_tx, rep_rx) = REPLIES.split()?;
     let (snap_w, snap_r) = SNAPSHOTS.split()?;
-    let (pin_tx, pin_rx) = PARAMS_IN.split()?;
-    let (pout_tx, pout_rx) = PARAMS_OUT.split()?;
+    let (pin_tx, pin_rx) = BULK_IN.split()?;
+    let (pout_tx, pout_rx) = BULK_OUT.split()?;
     Some((
-        ThreadLink { requests: req_tx, replies: rep_rx, snapshots: snap_r, params_in: pin_tx, params_out: pout_rx, next_seq: 0 },
+        ThreadLink { requests: req_tx, replies: rep_rx, snapshots: snap_r, bulk_in: pin_tx, bulk_out: pout_rx, next_seq: 0 },
         IsrLink {
             requests: req_rx,
             replies: rep_tx,
             snapshots: snap_w,
-            params_in: pin_rx,
-            params_out: pout_tx,
+            bulk_in: pin_rx,
+            bulk_out: pout_tx,
             controller: None,
             published_seq: 0,
         },
@@ -248,27 +383,42 @@ impl IsrLink {
         let _ = self.replies.try_put(Envelope { seq, body });
     }
 
-    /// Serves `ReadParams` / `ApplyParams` (called only for those requests:
-    /// the parameter copies cost nothing in other periods).
-    pub fn serve_params(&mut self, request: Request) -> Reply {
+    /// Serves `ReadParams` / `ApplyParams` / `Bulk` (called only for those
+    /// requests: the copies cost nothing in other periods). `Bulk` goes
+    /// through `servo_core::protocol::drive::on_controller`, the mapping the
+    /// simulator uses too.
+    #[inline(never)]
+    pub fn serve_bulk(&mut self, request: Request) -> Reply {
         if self.controller().is_none() {
+            // A payload nobody will serve.
+            let _ = self.bulk_in.try_take();
             return Reply::NoDrive;
         }
-        match request {
-            Request::ReadParams => {
-                let Some(c) = self.controller.as_deref() else { return Reply::NoDrive };
-                // A stale set nobody collected is replaced.
-                let _ = self.params_out.try_withdraw();
-                match self.params_out.try_put(*c.params()) {
-                    Ok(()) => Reply::Params,
-                    Err(_) => Reply::Refused,
-                }
-            }
-            Request::ApplyParams => match (self.params_in.try_take(), self.controller.as_deref_mut()) {
-                (Some(p), Some(c)) => Reply::Applied(c.apply_params(&p)),
-                _ => Reply::Refused,
+        let Some(c) = self.controller.as_deref_mut() else { return Reply::NoDrive };
+        let out = match (request, self.bulk_in.try_take()) {
+            (Request::ReadParams, _) => BulkOut::Params(*c.params()),
+            (Request::ApplyParams, Some(BulkIn::Params(p))) => return Reply::Applied(c.apply_params(&p)),
+            (Request::Bulk, Some(BulkIn::Test(t))) => match on_controller::test_signal(c, &t) {
+                Ok(()) => BulkOut::Done,
+                Err(e) => BulkOut::Refused(ReplyText::of(&e)),
             },
-            _ => Reply::Refused,
+            (Request::Bulk, Some(BulkIn::Capture(CaptureOp::Layout))) => match c.capture_layout() {
+                Ok(l) => BulkOut::CaptureLayout(l),
+                Err(e) => BulkOut::Refused(ReplyText::of(&servo_core::protocol::server::text(e))),
+            },
+            (Request::Bulk, Some(BulkIn::Capture(op))) => match op.request().map(|r| on_controller::capture(c, &r)) {
+                Some(Ok(CaptureReply::Status(s))) => BulkOut::CaptureStatus(s),
+                Some(Ok(_)) => BulkOut::Done,
+                Some(Err(e)) => BulkOut::Refused(ReplyText::of(&e)),
+                None => return Reply::Refused,
+            },
+            _ => return Reply::Refused,
+        };
+        // A stale answer nobody collected is replaced.
+        let _ = self.bulk_out.try_withdraw();
+        match self.bulk_out.try_put(out) {
+            Ok(()) => Reply::Bulk,
+            Err(_) => Reply::Refused,
         }
     }
 
@@ -290,6 +440,7 @@ impl IsrLink {
         if let Some(c) = self.controller.as_deref() {
             snapshot.drive_installed = true;
             snapshot.drive_record = (c.telemetry(), c.move_in_progress());
+            snapshot.test_running = c.test_running();
         }
         self.snapshots.publish(snapshot);
     }
@@ -353,9 +504,8 @@ impl ThreadLink {
 
     /// The controller's parameters as it runs them now (`ReadParams`).
     pub fn read_params(&mut self, timeout_cycles: u32) -> Result<ControlParams, LinkError> {
-        let _ = self.params_out.try_take();
-        match self.call(Request::ReadParams, timeout_cycles)? {
-            Reply::Params => self.params_out.try_take().ok_or(LinkError::NoReply),
+        match self.exchange(Request::ReadParams, None, timeout_cycles)? {
+            BulkOut::Params(p) => Ok(p),
             _ => Err(LinkError::Refused),
         }
     }
@@ -363,18 +513,40 @@ impl ThreadLink {
     /// Hands `params` to the interrupt, which applies them between two
     /// steps (`ApplyParams`); the controller's answer.
     pub fn apply_params(&mut self, params: &ValidatedParams, timeout_cycles: u32) -> Result<Result<(), ApplyError>, LinkError> {
-        // A set left by a call that timed out before the interrupt took it.
-        let _ = self.params_in.try_withdraw();
-        if self.params_in.try_put(*params).is_err() {
-            return Err(LinkError::NotTaken);
-        }
-        let result = self.call(Request::ApplyParams, timeout_cycles);
-        // Not taken: take the set back, so it never applies late.
-        let _ = self.params_in.try_withdraw();
-        match result? {
+        match self.post_bulk(Request::ApplyParams, Some(BulkIn::Params(*params)), timeout_cycles)? {
             Reply::Applied(r) => Ok(r),
             _ => Err(LinkError::Refused),
         }
+    }
+
+    /// Hands `payload` to the interrupt (`Request::Bulk`) and returns what it
+    /// put in the bulk-out slot.
+    pub fn bulk(&mut self, payload: BulkIn, timeout_cycles: u32) -> Result<BulkOut, LinkError> {
+        self.exchange(Request::Bulk, Some(payload), timeout_cycles)
+    }
+
+    fn exchange(&mut self, request: Request, payload: Option<BulkIn>, timeout_cycles: u32) -> Result<BulkOut, LinkError> {
+        // An answer left by a call that timed out.
+        let _ = self.bulk_out.try_take();
+        match self.post_bulk(request, payload, timeout_cycles)? {
+            Reply::Bulk => self.bulk_out.try_take().ok_or(LinkError::NoReply),
+            _ => Err(LinkError::Refused),
+        }
+    }
+
+    #[inline(never)]
+    fn post_bulk(&mut self, request: Request, payload: Option<BulkIn>, timeout_cycles: u32) -> Result<Reply, LinkError> {
+        // A payload left by a call that timed out before the interrupt took it.
+        let _ = self.bulk_in.try_withdraw();
+        if let Some(p) = payload {
+            if self.bulk_in.try_put(p).is_err() {
+                return Err(LinkError::NotTaken);
+            }
+        }
+        let result = self.call(request, timeout_cycles);
+        // Not taken: take the payload back, so it never acts late.
+        let _ = self.bulk_in.try_withdraw();
+        result
     }
 
     /// The newest snapshot the interrupt published.

@@ -88,6 +88,9 @@ pub trait ServoBoard {
         &mut self,
         params: &servo_core::params::ValidatedParams,
     ) -> Result<Result<(), servo_core::controller::ApplyError>, link::LinkError>;
+    /// A capture or test-signal request served by the interrupt between two
+    /// steps (through the link); what it answered.
+    fn bulk(&mut self, payload: link::BulkIn) -> Result<link::BulkOut, link::LinkError>;
     fn set_led(&mut self, on: bool);
     /// The user button, debounced by the caller.
     fn button_pressed(&self) -> bool;

@@ -37,6 +37,9 @@ impl ValidatedParams {
     }
 }
 
+// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
+// run-time validation is not on any fast path).
+#[inline(never)]
 const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
         Err(ParamError { field, reason: "must be finite" })
@@ -47,6 +50,9 @@ const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
     }
 }
 
+// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
+// run-time validation is not on any fast path).
+#[inline(never)]
 const fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
         Err(ParamError { field, reason: "must be finite" })
@@ -57,6 +63,9 @@ const fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
     }
 }
 
+// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
+// run-time validation is not on any fast path).
+#[inline(never)]
 const fn nonzero(field: &'static str, v: u32) -> Result<(), ParamError> {
     if v == 0 { Err(ParamError { field, reason: "must be >= 1" }) } else { Ok(()) }
 }

@@ -9,7 +9,6 @@
 // Replies are values on the stack, sized by the wire format; no boxing here.
 #![allow(clippy::result_large_err)]
 
-use core::fmt::Write;
 
 use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use super::frame::{decode, Feed, FrameReader};
@@ -182,9 +181,26 @@ impl Server {
         match paths::name(usize::from(index)) {
             Some((path, kind)) => Ok(Reply::ParamName { index, path, kind }),
             None => {
-                let mut path = Path::new();
-                // Fits: "control[65535]" is 14 characters.
-                let _ = write!(path, "control[{index}]");
+                // "control[65535]" is 14 characters: fits. Digits by hand,
+                // not `write!`: core::fmt would cost ≈ 2.5 KB of flash.
+                let mut digits = [0u8; 5];
+                let mut n = index;
+                let mut k = digits.len();
+                while k > 0 {
+                    k = k.wrapping_sub(1);
+                    if let Some(d) = digits.get_mut(k) {
+                        *d = b'0'.wrapping_add(n.checked_rem(10).unwrap_or(0) as u8);
+                    }
+                    n = n.checked_div(10).unwrap_or(0);
+                    if n == 0 {
+                        break;
+                    }
+                }
+                let mut path = path_of("control[");
+                for &d in digits.get(k..).unwrap_or(&[]) {
+                    let _ = path.push(char::from(d));
+                }
+                let _ = path.push(']');
                 Err(Error::UnknownPath { path })
             }
         }

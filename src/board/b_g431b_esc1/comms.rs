@@ -38,11 +38,19 @@ use super::super::FLASH_STALL;
 /// the ±2 % an 8N1 frame tolerates. ≈ 92 kB/s: a 1 kHz telemetry frame of
 /// 17 fields (≈ 80 bytes) fits.
 pub const BAUD: u32 = 921_600;
-/// Receive ring (DMA, circular). 1 KiB = 11 ms of bytes at full line rate:
-/// the main task drains it every few hundred µs, and a flash erase (≤ 40 ms
-/// stall of the CPU, not of the DMA) happens only during `Save`, when the
-/// host waits for the reply.
-pub const RX_RING_LEN: usize = 1024;
+/// Receive ring (DMA, circular). 512 B = 5.6 ms of bytes at full line rate
+/// (92 bytes/ms). The longest the main task goes without draining it is one
+/// reply sent by DMA and awaited (a `FRAME_MAX` = 320-byte frame takes
+/// 3.5 ms on the line), or a telemetry frame and a reply back to back
+/// (< 320 bytes together for telemetry's ≤ 24 values, ≈ 110 bytes, plus a
+/// reply); the host sends one request and waits for its reply (the protocol
+/// is request–reply; the setpoint stream at rate comes over CAN), so what
+/// can arrive meanwhile is at most one request frame (≤ 320 bytes) and
+/// telemetry's own cadence does not add input. A flash erase (≤ 40 ms stall
+/// of the CPU, not of the DMA) happens only during `Save`, when the host
+/// waits for the reply. An overrun is reported by the ring and the frame
+/// reader restarts (the host's request times out and is repeated).
+pub const RX_RING_LEN: usize = 512;
 /// CAN FD nominal (arbitration) bit rate.
 pub const CAN_NOMINAL_BPS: u32 = 1_000_000;
 /// CAN FD data-phase bit rate (bit-rate switching).

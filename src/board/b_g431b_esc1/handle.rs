@@ -122,6 +122,10 @@ impl ServoBoard for Board {
         self.link.apply_params(params, self.period_cycles.saturating_mul(CALL_TIMEOUT_PERIODS))
     }
 
+    fn bulk(&mut self, payload: crate::board::link::BulkIn) -> Result<crate::board::link::BulkOut, LinkError> {
+        self.link.bulk(payload, self.period_cycles.saturating_mul(CALL_TIMEOUT_PERIODS))
+    }
+
     fn set_led(&mut self, on: bool) {
         let n = usize::from(self.led.pin());
         setup::gpio_port(self.led.id()).bsrr().write(|w| if on { w.set_bs(n, true) } else { w.set_br(n, true) });

@@ -126,7 +126,7 @@ impl IsrState {
                 Some(c) => Reply::Drive(c.command(cmd)),
                 None => Reply::NoDrive,
             },
-            Request::ReadParams | Request::ApplyParams => self.link.serve_params(request),
+            Request::ReadParams | Request::ApplyParams | Request::Bulk => self.link.serve_bulk(request),
         }
     }
 
