@@ -43,9 +43,3 @@ fn a_flipped_bit_is_a_crc_error_not_a_message() {
     }
     assert!(crc_errors > 0);
 }
-
-#[test]
-fn schema_hashes_are_distinct_and_stable_within_a_build() {
-    assert_ne!(SCHEMA_HASH, [0; 8]);
-    assert_ne!(SCHEMA_HASH, PARAMS_SCHEMA_HASH);
-}
