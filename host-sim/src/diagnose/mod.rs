@@ -396,7 +396,14 @@ pub fn diagnose_with(
             .collect()
     };
     let rem_h = remainder(&held, &pred_h);
-    let rem_t = remainder(&train, &stack_pred(&train));
+    let pred_t = stack_pred(&train);
+    let rem_t = remainder(&train, &pred_t);
+    // Whether the stack accounts for a poor nominal fit (verdict).
+    let stack_train_fit = if stack.is_some() {
+        fit::fit_pct(&train, Some(&pred_t))
+    } else {
+        fit_before_t
+    };
     // The disturbance on the stack's remainder or on the nominal residual
     // (a stack fitted on training may carry a wrong constant into the
     // held-out part), whichever leaves less on training.
@@ -535,19 +542,35 @@ pub fn diagnose_with(
         0.0
     };
     let top_name = top.as_ref().map(|t| t.0[0].effect.name().to_string());
-    let verdict = verdict::decide(
-        &gates,
-        &ranking,
-        top_name.as_deref(),
-        &stack_names,
+    // Implausible fits that survive the stack (refitted on its remainder).
+    let implausible: Vec<String> = rk
+        .not_ranked
+        .iter()
+        .filter(|n| n.status == "implausible")
+        .map(|n| n.effect.clone())
+        .collect();
+    let implausible_after_stack = stack
+        .as_ref()
+        .map(|(t, p)| plausible::still_implausible(&implausible, (t, p), &train, &nominal, &w));
+    let verdict = verdict::decide(&verdict::Inputs {
+        implausible_after_stack,
+        gates: &gates,
+        ranking: &ranking,
+        top: top_name.as_deref(),
+        stack: &stack_names,
         stack_weighted,
-        stack_primary_shrink.max(0.0),
-        Some(&dist),
-        time_structure
+        stack_primary: stack_primary_shrink.max(0.0),
+        stack_train_fit,
+        dist: Some(&dist),
+        structure: time_structure
             .iter()
             .find(|t| t.channel == CHANNELS[primary]),
-        if blocked { None } else { rk.top_halves },
-    );
+        top_halves: if blocked { None } else { rk.top_halves },
+        back_emf_heldout: match &nominal {
+            Nominal::Physics(p) => gates::back_emf_scale(&held, p),
+            Nominal::Regression(_) => None,
+        },
+    });
     let summary = Summary {
         source: log.source.clone(),
         heldout_source: heldout.map(|h| h.source.clone()),

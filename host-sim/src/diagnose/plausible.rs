@@ -126,3 +126,43 @@ pub fn check(
         _ => None,
     }
 }
+
+/// The implausible fits (`names`) that stay implausible once the library
+/// stack is in the model: each refitted on what the stack leaves on the
+/// training part. An effect bent out of shape to reach the stack's
+/// signature (a lead error soaking up a load offset's deflection) fits
+/// plausibly, or not at all, once that signature is gone; one still bent
+/// says the gap holds something the stack does not explain either.
+pub fn still_implausible(
+    names: &[String],
+    stack: (&[super::fit::Term], &[f64]),
+    train: &[&Segment],
+    nominal: &Nominal,
+    w: &[f64; super::residual::NCH],
+) -> Vec<String> {
+    let rest: Vec<Segment> = train
+        .iter()
+        .map(|s| {
+            let p = super::fit::predict(stack.0, stack.1, s, nominal);
+            let mut s = super::slice_segment(s, 0, s.len(), s.heldout);
+            for (r, p) in s.r.iter_mut().zip(&p) {
+                if let (Some(r), Some(p)) = (r.as_mut(), p) {
+                    r.iter_mut().zip(p).for_each(|(a, b)| *a -= b);
+                }
+            }
+            s
+        })
+        .collect();
+    let refs: Vec<&Segment> = rest.iter().collect();
+    names
+        .iter()
+        .filter(|n| {
+            let Some(e) = super::effects::by_name(n) else {
+                return false;
+            };
+            super::fit::fit_effect(e, &refs, nominal, w)
+                .is_ok_and(|f| check(e, &f.params, nominal, &refs).is_some())
+        })
+        .cloned()
+        .collect()
+}
