@@ -137,7 +137,7 @@ fn a_broken_baseline_leads_and_names_nothing() {
         assert_eq!(v.kind, "baseline_mismatch", "{}", v.headline);
         assert!(v.cause.is_none() && v.cause_group.is_empty());
         assert!(
-            v.headline.starts_with("**The rig's physics does not fit"),
+            v.headline.starts_with("**The nominal does not fit"),
             "{}",
             v.headline
         );

@@ -273,7 +273,7 @@ pub fn decide(i: &Inputs) -> Verdict {
         v.remaining_gap_pct = 100.0 - v.explained_pct;
         let msgs: Vec<&str> = gs.iter().map(|g| g.message.as_str()).collect();
         v.headline = format!(
-            "**The rig's physics does not fit this log** — {} {lead}No cause is named against this baseline: library effects and a disturbance fitted to it would stand in for the mismatch. {REMAINING} {:.1} %; the remainder is {ch} ({why}). Library effects would explain: {share_txt}.",
+            "**The nominal does not fit this log** — {}. {lead}No cause is named against this baseline: library effects and a disturbance fitted to it would stand in for the mismatch. {REMAINING} {:.1} %; the remainder is {ch} ({why}). Library effects would explain: {share_txt}.",
             msgs.join("; "),
             v.remaining_gap_pct
         );
