@@ -375,6 +375,8 @@ fn open_world_sample() {
         "mismatched rig file not flagged: {:?}",
         out[4].gates
     );
+    // The gate governs the verdict: it leads, and nothing is named.
+    assert_eq!(out[4].verdict, "baseline_mismatch", "{}", out[4].headline);
 }
 
 /// The suite's cases: every library effect held out once, `novel_reps`

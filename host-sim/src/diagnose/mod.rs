@@ -480,6 +480,7 @@ pub fn diagnose_with(
         .collect();
     let implausible_after_stack = stack
         .as_ref()
+        .filter(|_| !implausible.is_empty())
         .map(|(t, p)| plausible::still_implausible(&implausible, (t, p), &train, &nominal, &w));
     let verdict = verdict::decide(&verdict::Inputs {
         implausible_after_stack,
