@@ -211,13 +211,31 @@ fn implausible_fits_block_library_causes_but_not_a_disturbance() {
     let v = run(&r, &g, 82.0, 10.0, FITS, None, Some(1.0), still);
     assert_eq!(v.kind, "unexplained", "{}", v.headline);
     let d = DisturbanceFit {
+        base: "stack".into(),
         primary_shrink_pct: 90.0,
         over_stack_points: 8.0,
         ..Default::default()
     };
+    // On the blocked stack's remainder, adding 8 points: the stack's work,
+    // not the disturbance's.
     let v = run(&r, &g, 82.0, 10.0, FITS, Some(&d), Some(1.0), None);
-    assert_eq!(v.kind, "disturbance", "{}", v.headline);
-    assert!(v.headline.starts_with("**Warning"), "{}", v.headline);
+    assert_eq!(v.kind, "unexplained", "{}", v.headline);
+    // Adding its own 20 points, or fitted on the nominal residual: a
+    // disturbance, the warning still first.
+    for d in [
+        DisturbanceFit {
+            over_stack_points: 25.0,
+            ..d.clone()
+        },
+        DisturbanceFit {
+            base: "nominal".into(),
+            ..d.clone()
+        },
+    ] {
+        let v = run(&r, &g, 82.0, 10.0, FITS, Some(&d), Some(1.0), None);
+        assert_eq!(v.kind, "disturbance", "{}", v.headline);
+        assert!(v.headline.starts_with("**Warning"), "{}", v.headline);
+    }
 }
 
 #[test]

@@ -280,7 +280,12 @@ pub fn decide(i: &Inputs) -> Verdict {
         return v;
     }
     let dist_better = dist.is_some_and(|d| d.over_stack_points >= DISTURBANCE_OVER_STACK_POINTS);
-    if dist_total >= MOST_OF_GAP_PCT && (lib < MOST_OF_GAP_PCT || dist_better) {
+    // Fitted on the stack's remainder, the disturbance's figure includes
+    // the stack's work: a stack that is not named (unstable, blocked,
+    // inadequate) plus levels of zero is not "explained by a disturbance".
+    // It must then add its own `DISTURBANCE_OVER_STACK_POINTS`.
+    let dist_own = dist.is_some_and(|d| d.base == "nominal" || dist_better);
+    if dist_total >= MOST_OF_GAP_PCT && dist_own && (lib < MOST_OF_GAP_PCT || dist_better) {
         let d = dist.expect("checked");
         v.kind = "disturbance".into();
         v.explained_pct = dist_total;
