@@ -125,13 +125,13 @@ fn baseline<'a>(
                 .unwrap_or(0);
             match stack_train_fit[c] {
                 Some(f) if f >= NOMINAL_FIT_MIN_PCT[c] => notes.push(format!(
-                    "the nominal fits the {} channel poorly (training Fit {:.1} %), but with the library stack it reaches {f:.1} %: the stack accounts for the poor fit. ",
+                    "The nominal fits the {} channel poorly (training Fit {:.1} %), but with the library stack it reaches {f:.1} %: the stack accounts for the poor fit. ",
                     CHANNELS[c], g.figure
                 )),
                 other => {
                     broken.push(g);
                     notes.push(format!(
-                        "no library stack accounts for the poor {} fit (training Fit {} with the stack). ",
+                        "No library stack accounts for the poor {} fit (training Fit {} with the stack). ",
                         CHANNELS[c],
                         other.map_or("unchanged".to_string(), |f| format!("{f:.1} %"))
                     ));
