@@ -25,14 +25,16 @@ pub const MOST_OF_GAP_PCT: f64 = 66.7;
 /// its time course then matters more than any constant-parameter effect.
 pub const DISTURBANCE_OVER_STACK_POINTS: f64 = 20.0;
 /// Residual analysis of the named model (model validation as in Ljung,
-/// *System Identification*, §16.6: the residual of an adequate model is
-/// independent of past inputs): when the logged inputs still explain this
+/// *System Identification*, ch. 16: the residual of an adequate model is
+/// independent of the inputs): when the logged inputs still explain this
 /// share of what the stack leaves on the primary channel (cross-validated,
 /// `TimeStructure::input_r2_pct`), the named effect has the wrong shape —
 /// a neighbour standing in for the cause (coupling compliance, which
 /// follows the motor torque, for a Hertz contact, which follows the nut
 /// force) — and is not named. On the nominal rig the floor's own share is
-/// 1–30 %: the bar sits above it.
+/// 1–30 %: the bar sits above it. Set after the open-world suite's second
+/// held-out set showed stand-ins at 45–83 % (docs/diagnosis.md); a
+/// closed-world true stack has come within half a point of it.
 pub const ADEQUATE_INPUT_R2_MAX_PCT: f64 = 40.0;
 /// A current-sensor gain `g` read as a torque-constant (flux) change: the
 /// back-EMF falls short of the rig file's by at least this share of the
