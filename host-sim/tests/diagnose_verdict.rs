@@ -47,7 +47,8 @@ fn structure(input_r2: f64) -> TimeStructure {
     }
 }
 
-/// A stable top effect `top` with stack shrink `lib` % and no disturbance.
+/// A stable top effect (the first of `ranking`) with stack shrink `lib` %.
+#[allow(clippy::too_many_arguments)] // each argument is one of the verdict's inputs under test
 fn run(
     ranking: &[RankEntry],
     gates: &[Gate],

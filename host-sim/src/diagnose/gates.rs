@@ -201,11 +201,12 @@ pub fn fit_gates(
     out
 }
 
-/// The back-EMF scale `k` in `u_q − R i_q − L_q di_q/dt ≈ k · p ω ψ_f
-/// + d · tanh(i_q / 0.1 A)` (least squares over the segments; `None`
-/// without a voltage channel or motion). The voltage residual is `u_q −
-/// (R i_q + L_q di_q/dt + p ω ψ_f)`, so `r + p ω ψ_f` is the logged
-/// back-EMF. The inverter's dead-time voltage `d` (the library's
+/// The back-EMF scale `k` in
+/// `u_q − R i_q − L_q di_q/dt ≈ k · p ω ψ_f + d · tanh(i_q / 0.1 A)`
+/// (least squares over the segments; `None` without a voltage channel or
+/// motion). The voltage residual is
+/// `u_q − (R i_q + L_q di_q/dt + p ω ψ_f)`, so `r + p ω ψ_f` is the
+/// logged back-EMF. The inverter's dead-time voltage `d` (the library's
 /// `dead_time` regressor) is fitted alongside: it follows the sign of the
 /// current, which follows the motion; left out, it pushed `k` past the
 /// tolerance on a closed-world dead-time rig (suite seed 0).
