@@ -53,29 +53,47 @@ fn a_mismatched_rig_file_is_flagged_with_channel_and_scale() {
     .unwrap();
     let s = &d.summary;
     // A payload error on a vertical axis is a constant force, and the
-    // torque constant's error may cancel part of it in the torque scale:
-    // one of the gates fires, names what it fired on, and no library
-    // effect is named as the cause.
+    // torque constant's error may cancel part of it in the torque scale;
+    // the back-EMF scale sees the flux alone: the rig file claims 1.3 ψ_f,
+    // the log's back-EMF is the true one, 1/1.3 = 0.77 of it.
     let g = s
         .gates
         .iter()
-        .find(|g| {
-            matches!(
-                g.kind.as_str(),
-                "physics_mismatch" | "nominal_poor_fit" | "implausible_fits"
-            )
-        })
-        .unwrap_or_else(|| panic!("no gate: {}", s.verdict.headline));
-    if g.kind == "physics_mismatch" {
+        .find(|g| g.kind == "physics_mismatch" && g.channel.as_deref() == Some("voltage"))
+        .unwrap_or_else(|| panic!("no back-EMF gate: {:?}; {}", s.gates, s.verdict.headline));
+    assert!(
+        (g.figure - 1.0 / 1.3).abs() < 0.03,
+        "back-EMF scale {}",
+        g.figure
+    );
+    if let Some(t) = s
+        .gates
+        .iter()
+        .find(|g| g.kind == "physics_mismatch" && g.channel.as_deref() == Some("torque"))
+    {
         // The log's torque is the true K_t i; the rig file claims 1.3 K_t.
         assert!(
-            g.figure > 1.0 + host_sim::diagnose::gates::TORQUE_SCALE_TOLERANCE && g.figure < 1.35,
+            t.figure > 1.0 + host_sim::diagnose::gates::TORQUE_SCALE_TOLERANCE && t.figure < 1.35,
             "scale {}",
-            g.figure
+            t.figure
         );
-        assert_eq!(g.channel.as_deref(), Some("torque"));
     }
-    assert!(s.verdict.cause.is_none(), "{}", s.verdict.headline);
+    // The gate governs the verdict: it leads, and nothing is named.
+    assert_eq!(
+        s.verdict.kind, "baseline_mismatch",
+        "{}",
+        s.verdict.headline
+    );
+    assert!(
+        s.verdict.headline.contains(&g.message),
+        "{}",
+        s.verdict.headline
+    );
+    assert!(
+        s.verdict.cause.is_none() && s.verdict.cause_group.is_empty(),
+        "{}",
+        s.verdict.headline
+    );
     let kind = g.kind.clone();
     // The report puts the warning before the verdict.
     let dir = tempfile::tempdir().unwrap();

@@ -38,6 +38,8 @@ struct Outcome {
     category: &'static str,
     verdict: String,
     cause: Option<String>,
+    /// Effects named together as not separable on the log.
+    cause_group: Vec<String>,
     headline: String,
     top_effect: Option<String>,
     explained_pct: f64,
@@ -123,8 +125,10 @@ fn run_case(spec: Spec) -> Outcome {
     let s = &d.summary;
     let v = &s.verdict;
     let category = match v.kind.as_str() {
-        // The truth is never in the ranked library here: any cause is wrong.
-        "library_effect" => "wrong",
+        // The truth is never in the ranked library here: any cause is
+        // wrong, and so is a group of library effects the log cannot
+        // separate (the truth is not among them).
+        "library_effect" | "library_group" => "wrong",
         "disturbance" => "disturbance_modelled",
         _ => "honestly_unexplained",
     };
@@ -159,6 +163,7 @@ fn run_case(spec: Spec) -> Outcome {
         category,
         verdict: v.kind.clone(),
         cause: v.cause.clone(),
+        cause_group: v.cause_group.clone(),
         headline: v.headline.clone(),
         top_effect: s.top_effect.clone(),
         explained_pct: v.explained_pct,
@@ -251,12 +256,15 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
         .collect();
     let ev_ok = ev.iter().filter(|(a, b)| (a - b).abs() <= 10.0).count();
     let mism: Vec<&Outcome> = out.iter().filter(|o| o.family == "mismatched").collect();
+    // Gated: a baseline gate fired and governed the verdict (no cause of
+    // any kind named).
     let mism_gated = mism
         .iter()
         .filter(|o| {
             o.gates
                 .iter()
                 .any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))
+                && o.verdict == "baseline_mismatch"
         })
         .count();
     let figures = serde_json::json!({
@@ -268,6 +276,7 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
             "wrong": count("wrong"),
         },
         "wrong_library_effect_named_pct": pct(count("wrong"), n),
+        "wrong_cases": out.iter().filter(|o| o.category == "wrong").map(|o| format!("{} → {}", o.case, o.cause.clone().unwrap_or_else(|| o.cause_group.join(" or ")))).collect::<Vec<_>>(),
         "force_cases": force.len(),
         "force_disturbance_weighted_shrink_ge_70": force_ok,
         "force_disturbance_weighted_shrink_pct": force.iter().map(|o| o.disturbance_weighted_pct).collect::<Vec<_>>(),
@@ -295,7 +304,14 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
             o.case,
             o.category,
             o.verdict,
-            o.cause.as_ref().map_or(String::new(), |c| format!(": {c}")),
+            o.cause.as_ref().map_or_else(
+                || if o.cause_group.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {}", o.cause_group.join(" or "))
+                },
+                |c| format!(": {c}")
+            ),
             o.top_effect.as_deref().unwrap_or("none"),
             o.explained_pct,
             o.disturbance_weighted_pct,
@@ -359,6 +375,8 @@ fn open_world_sample() {
         "mismatched rig file not flagged: {:?}",
         out[4].gates
     );
+    // The gate governs the verdict: it leads, and nothing is named.
+    assert_eq!(out[4].verdict, "baseline_mismatch", "{}", out[4].headline);
 }
 
 /// The suite's cases: every library effect held out once, `novel_reps`
@@ -381,11 +399,16 @@ fn specs(base: u64, novel_reps: u64) -> Vec<Spec> {
 const HOLDOUT_SEED_BASE: u64 = 100;
 /// Seed offset of the second held-out draws (issue 13, character rules):
 /// drawn like the first, run once after the method was fixed on the tuning
-/// and the first held-out seeds.
+/// and the first held-out seeds. Its failures were then studied (the
+/// verdict's gate, group, adequacy and flux rules, the primary channel):
+/// it is no longer held out.
 const HOLDOUT2_SEED_BASE: u64 = 200;
+/// Seed offset of the third held-out draws: drawn like the others, run
+/// once after the changes made on the second set's failures were final.
+const HOLDOUT3_SEED_BASE: u64 = 300;
 
 #[test]
-#[ignore = "full open-world suite, the tuning seeds and two held-out seed sets (≈ 1.5–2.5 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
+#[ignore = "full open-world suite, the tuning seeds and three held-out seed sets (≈ 2.5–4 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
 fn open_world_suite() {
     let t0 = std::time::Instant::now();
     let out: Vec<Outcome> = specs(0, 2).into_iter().map(run_case).collect();
@@ -394,37 +417,27 @@ fn open_world_suite() {
         t0.elapsed().as_secs_f64(),
         "Open-world suite (seeds the thresholds were set on)",
     );
-    let t1 = std::time::Instant::now();
-    let held: Vec<Outcome> = specs(HOLDOUT_SEED_BASE, 3)
-        .into_iter()
-        .map(run_case)
-        .collect();
-    let (hf, hr) = summarize(
-        &held,
-        t1.elapsed().as_secs_f64(),
-        &format!("Held-out seeds (from {HOLDOUT_SEED_BASE} on; not used to set anything)"),
-    );
-    figures["holdout_seeds"] = hf;
-    figures["holdout_seed_base"] = HOLDOUT_SEED_BASE.into();
-    rep.push('\n');
-    rep.push_str(&hr);
-    // The second held-out set, run once after the method was fixed on the
-    // first two (skipped while developing: DIAGNOSE_SKIP_HOLDOUT2=1).
-    if std::env::var_os("DIAGNOSE_SKIP_HOLDOUT2").is_none() {
-        let t2 = std::time::Instant::now();
-        let held2: Vec<Outcome> = specs(HOLDOUT2_SEED_BASE, 3)
-            .into_iter()
-            .map(run_case)
-            .collect();
-        let (hf2, hr2) = summarize(
-            &held2,
-            t2.elapsed().as_secs_f64(),
-            &format!("Second held-out seeds (from {HOLDOUT2_SEED_BASE} on; run once, after the character method was fixed)"),
-        );
-        figures["holdout_seeds_2"] = hf2;
-        figures["holdout2_seed_base"] = HOLDOUT2_SEED_BASE.into();
+    // Each held-out set: its JSON key, seed base and title. Skip the later
+    // ones while developing: DIAGNOSE_SKIP_HOLDOUT2=1 skips the second and
+    // third, DIAGNOSE_SKIP_HOLDOUT3=1 the third.
+    let skip2 = std::env::var_os("DIAGNOSE_SKIP_HOLDOUT2").is_some();
+    let skip3 = skip2 || std::env::var_os("DIAGNOSE_SKIP_HOLDOUT3").is_some();
+    let sets = [
+        ("holdout_seeds", "holdout_seed_base", HOLDOUT_SEED_BASE, "Held-out seeds (from 100 on; not used to set anything)", false),
+        ("holdout_seeds_2", "holdout2_seed_base", HOLDOUT2_SEED_BASE, "Second held-out seeds (from 200 on; run once after the character method was fixed, then studied for the verdict's rules: no longer held out)", skip2),
+        ("holdout_seeds_3", "holdout3_seed_base", HOLDOUT3_SEED_BASE, "Third held-out seeds (from 300 on; run once, after the verdict's rules were final)", skip3),
+    ];
+    for (key, base_key, base, title, skip) in sets {
+        if skip {
+            continue;
+        }
+        let t = std::time::Instant::now();
+        let held: Vec<Outcome> = specs(base, 3).into_iter().map(run_case).collect();
+        let (hf, hr) = summarize(&held, t.elapsed().as_secs_f64(), title);
+        figures[key] = hf;
+        figures[base_key] = base.into();
         rep.push('\n');
-        rep.push_str(&hr2);
+        rep.push_str(&hr);
     }
     figures["total_wall_s"] = t0.elapsed().as_secs_f64().into();
     write("open", &figures, &rep);

@@ -43,7 +43,7 @@ pub const LOCKED_EXCESS_POINTS: f64 = 10.0;
 /// Thresholds (robust sigmas) tried on the training part.
 pub const THRESHOLDS: [f64; 6] = [4.0, 6.0, 8.0, 12.0, 16.0, 24.0];
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct DisturbanceFit {
     pub model: String,
     /// What it is fitted on: `nominal` (the nominal residual) or `stack`

@@ -71,7 +71,7 @@ pub struct EventOut {
     pub step: f64,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct TimeStructure {
     pub channel: String,
     pub events_detected: usize,

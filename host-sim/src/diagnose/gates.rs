@@ -2,7 +2,7 @@
 //! that come before any finding, each with its figures.
 
 use super::log::Log;
-use super::residual::{Nominal, Segment, CHANNELS, NCH, TORQUE};
+use super::residual::{Nominal, Segment, CHANNELS, NCH, TORQUE, VOLTAGE};
 use super::summary::NotRanked;
 
 /// Training Fit % of a channel below which the nominal "explains the
@@ -22,6 +22,14 @@ pub const HELDOUT_DROP_POINTS: f64 = 20.0;
 /// the torque constant, lead or inertia of the rig file do not match the
 /// log (a current-sensor gain error of a calibrated drive is a few %).
 pub const TORQUE_SCALE_TOLERANCE: f64 = 0.2;
+
+/// The logged back-EMF against the rig file's, as the least-squares scale
+/// `k` in `u_q − R i_q − L_q di_q/dt ≈ k · p ω ψ_f`: outside `1 ± this`
+/// the rig file's flux linkage is not this motor's. Only the flux enters
+/// it (no mass, lead or friction), and NdFeB loses 0.12 %/K, ≤ 12 % over
+/// a 100 K warm-up; a torque constant checked through the torque scale
+/// alone can be hidden by a payload error of the opposite sign.
+pub const BACK_EMF_TOLERANCE: f64 = 0.15;
 
 /// Implausible library fits (`plausible`) from this many effects mean the
 /// log does not match the rig's physics, not that the rig has them all.
@@ -142,7 +150,10 @@ pub fn fit_gates(
             });
         }
     }
-    if let Nominal::Physics(_) = nominal {
+    if let Nominal::Physics(p) = nominal {
+        if let Some(g) = back_emf_gate(train, p) {
+            out.push(g);
+        }
         // K_t i = y, nominal torque = y − r: least-squares scale, weighted.
         let (mut ym, mut mm) = (0.0, 0.0);
         for s in train {
@@ -188,4 +199,57 @@ pub fn fit_gates(
         });
     }
     out
+}
+
+/// The back-EMF scale `k` in
+/// `u_q − R i_q − L_q di_q/dt ≈ k · p ω ψ_f + d · tanh(i_q / 0.1 A)`
+/// (least squares over the segments; `None` without a voltage channel or
+/// motion). The voltage residual is
+/// `u_q − (R i_q + L_q di_q/dt + p ω ψ_f)`, so `r + p ω ψ_f` is the
+/// logged back-EMF. The inverter's dead-time voltage `d` (the library's
+/// `dead_time` regressor) is fitted alongside: it follows the sign of the
+/// current, which follows the motion; left out, it pushed `k` past the
+/// tolerance on a closed-world dead-time rig (suite seed 0).
+pub fn back_emf_scale(segs: &[&Segment], p: &super::residual::Physics) -> Option<f64> {
+    // Normal equations of [e, h] → [k, d].
+    let (mut ee, mut eh, mut hh, mut ze, mut zh) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for s in segs {
+        let Some(r) = &s.r[VOLTAGE] else { continue };
+        for ((ri, w), i) in r.iter().zip(&s.omega).zip(&s.iq) {
+            let e = p.pole_pairs * w * p.flux_wb;
+            let h = (i / 0.1).tanh();
+            let z = ri + e;
+            ee += e * e;
+            eh += e * h;
+            hh += h * h;
+            ze += z * e;
+            zh += z * h;
+        }
+    }
+    let det = ee * hh - eh * eh;
+    if ee <= 0.0 {
+        return None;
+    }
+    // Without current (hh = 0) or collinear: the back-EMF alone.
+    Some(if det > 1e-9 * ee * hh.max(1e-300) && hh > 0.0 {
+        (ze * hh - zh * eh) / det
+    } else {
+        ze / ee
+    })
+}
+
+/// `physics_mismatch` on the voltage channel: the back-EMF scale outside
+/// `1 ± BACK_EMF_TOLERANCE`.
+fn back_emf_gate(train: &[&Segment], p: &super::residual::Physics) -> Option<Gate> {
+    let k = back_emf_scale(train, p)?;
+    ((k - 1.0).abs() > BACK_EMF_TOLERANCE).then(|| Gate {
+        kind: "physics_mismatch".into(),
+        channel: Some("voltage".into()),
+        message: format!(
+            "the logged back-EMF (u_q − R i_q − L_q di_q/dt) is {k:.2} × the rig file's p ω ψ_f (tolerance ±{:.0} %; magnets lose ≤ 12 % over a 100 K warm-up): the rig file's flux linkage ({:.4} Wb), and with it its torque constant, is not this motor's",
+            100.0 * BACK_EMF_TOLERANCE,
+            p.flux_wb
+        ),
+        figure: k,
+    })
 }

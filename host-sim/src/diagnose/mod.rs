@@ -8,6 +8,7 @@
 //! `effects` + `fit` (which, trained on one part and scored on a held-out
 //! part) → `report` (markdown, PNG, summary.json).
 
+pub mod cli;
 pub mod cranfield;
 pub mod disturbance;
 pub mod effects;
@@ -27,86 +28,14 @@ pub mod spectrum;
 pub mod summary;
 pub mod verdict;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
+pub use cli::{read_log, run_cli, DiagnoseArgs};
 use figures::shrink;
 use fit::Term;
 use log::{Log, Severity};
 use residual::{Nominal, Segment, CHANNELS, NCH};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 pub use summary::{ChannelAnalysis, NotRanked, RankEntry, RegionComparison, Summary};
-
-/// `host-sim diagnose` arguments.
-#[derive(clap::Args, Debug, Clone)]
-pub struct DiagnoseArgs {
-    /// The measured log: schema CSV (`.csv`), defmt telemetry text (other
-    /// extensions), or a Cranfield file (`--format cranfield`, or detected).
-    #[arg(long)]
-    pub log: PathBuf,
-    /// A second log used only as the held-out part (a different run or
-    /// trajectory). Without it, alternate runs of --log are held out (or the
-    /// last 40 % of a single run).
-    #[arg(long)]
-    pub heldout: Option<PathBuf>,
-    /// Rig file (TOML [control] + [plant]) giving the nominal model; default:
-    /// the shipped nominal rig.
-    #[arg(long)]
-    pub rig: Option<PathBuf>,
-    /// Healthy reference log: fit a regression nominal on it instead of the
-    /// rig's physics (for rigs whose parameters are unknown, e.g. Cranfield).
-    #[arg(long)]
-    pub reference: Option<PathBuf>,
-    /// Input format: auto, csv, defmt or cranfield.
-    #[arg(long, default_value = "auto")]
-    pub format: String,
-    /// Also run the closed-loop replay (nominal plant + control core driven
-    /// by the logged reference and load) on the first run of --log.
-    #[arg(long)]
-    pub replay: bool,
-    /// Longest stretch replayed, seconds.
-    #[arg(long, default_value_t = 60.0)]
-    pub replay_max_s: f64,
-    /// Only convert --log to the schema CSV (DIR/log.csv) and validate it.
-    #[arg(long)]
-    pub convert_only: bool,
-    /// Output folder (created if missing).
-    #[arg(long)]
-    pub out: PathBuf,
-}
-
-/// Reads a log in the given format.
-pub fn read_log(path: &Path, format: &str) -> Result<Log> {
-    let fmt = if format == "auto" {
-        let head = std::fs::read_to_string(path)
-            .with_context(|| format!("reading {}", path.display()))?
-            .lines()
-            .next()
-            .unwrap_or("")
-            .to_string();
-        if head.contains("position_error") && head.contains("set_point") {
-            "cranfield"
-        } else if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
-        {
-            "csv"
-        } else {
-            "defmt"
-        }
-    } else {
-        format
-    };
-    match fmt {
-        "csv" => Log::read_csv(path),
-        "defmt" => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            log::parse_defmt(&text, &path.display().to_string())
-        }
-        "cranfield" => Ok(cranfield::convert(path)?.log),
-        other => bail!("--format {other}: expected auto, csv, defmt or cranfield"),
-    }
-}
 
 /// Everything the report needs besides the summary.
 pub struct Diagnosis {
@@ -396,7 +325,14 @@ pub fn diagnose_with(
             .collect()
     };
     let rem_h = remainder(&held, &pred_h);
-    let rem_t = remainder(&train, &stack_pred(&train));
+    let pred_t = stack_pred(&train);
+    let rem_t = remainder(&train, &pred_t);
+    // Whether the stack accounts for a poor nominal fit (verdict).
+    let stack_train_fit = if stack.is_some() {
+        fit::fit_pct(&train, Some(&pred_t))
+    } else {
+        fit_before_t
+    };
     // The disturbance on the stack's remainder or on the nominal residual
     // (a stack fitted on training may carry a wrong constant into the
     // held-out part), whichever leaves less on training.
@@ -535,19 +471,36 @@ pub fn diagnose_with(
         0.0
     };
     let top_name = top.as_ref().map(|t| t.0[0].effect.name().to_string());
-    let verdict = verdict::decide(
-        &gates,
-        &ranking,
-        top_name.as_deref(),
-        &stack_names,
+    // Implausible fits that survive the stack (refitted on its remainder).
+    let implausible: Vec<String> = rk
+        .not_ranked
+        .iter()
+        .filter(|n| n.status == "implausible")
+        .map(|n| n.effect.clone())
+        .collect();
+    let implausible_after_stack = stack
+        .as_ref()
+        .filter(|_| !implausible.is_empty())
+        .map(|(t, p)| plausible::still_implausible(&implausible, (t, p), &train, &nominal, &w));
+    let verdict = verdict::decide(&verdict::Inputs {
+        implausible_after_stack,
+        gates: &gates,
+        ranking: &ranking,
+        top: top_name.as_deref(),
+        stack: &stack_names,
         stack_weighted,
-        stack_primary_shrink.max(0.0),
-        Some(&dist),
-        time_structure
+        stack_primary: stack_primary_shrink.max(0.0),
+        stack_train_fit,
+        dist: Some(&dist),
+        structure: time_structure
             .iter()
             .find(|t| t.channel == CHANNELS[primary]),
-        if blocked { None } else { rk.top_halves },
-    );
+        top_halves: if blocked { None } else { rk.top_halves },
+        back_emf_heldout: match &nominal {
+            Nominal::Physics(p) => gates::back_emf_scale(&held, p),
+            Nominal::Regression(_) => None,
+        },
+    });
     let summary = Summary {
         source: log.source.clone(),
         heldout_source: heldout.map(|h| h.source.clone()),
@@ -610,84 +563,4 @@ pub fn diagnose_with(
         disturbance_heldout: dist_pred,
         change_points: cps,
     })
-}
-
-/// `host-sim diagnose`.
-pub fn run_cli(args: &DiagnoseArgs) -> Result<()> {
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let log = read_log(&args.log, &args.format)?;
-    for i in &log.issues {
-        eprintln!("{}: {i}", log.source);
-    }
-    if args.convert_only {
-        let path = args.out.join("log.csv");
-        log.write_csv(&path)?;
-        println!(
-            "wrote {} ({} rows, {} errors)",
-            path.display(),
-            log.len(),
-            log.errors().count()
-        );
-        return if log.errors().count() > 0 {
-            bail!("the converted log has errors (listed above)")
-        } else {
-            Ok(())
-        };
-    }
-    let heldout = args
-        .heldout
-        .as_ref()
-        .map(|p| read_log(p, &args.format))
-        .transpose()?;
-    let rig = crate::config::RigConfig::load_or_nominal(args.rig.as_ref())?;
-    let reference = args
-        .reference
-        .as_ref()
-        .map(|p| read_log(p, &args.format))
-        .transpose()?;
-    let nominal = match &reference {
-        Some(r) => Nominal::Regression(residual::fit_regression(r)?),
-        None => Nominal::Physics(residual::Physics::from_rig(&rig)),
-    };
-    let mut d = diagnose_against(
-        &log,
-        heldout.as_ref(),
-        reference.as_ref(),
-        nominal,
-        rig.plant.load.initial_tilt_deg,
-    )?;
-    if args.replay {
-        match replay::replay(&rig, &log, args.replay_max_s) {
-            Ok(r) => d.summary.replay = Some(r),
-            Err(e) => eprintln!("replay skipped: {e:#}"),
-        }
-    }
-    report::write(&d, &args.out)?;
-    let s = &d.summary;
-    for g in &s.gates {
-        println!("WARNING [{}]: {}", g.kind, g.message);
-    }
-    println!("verdict: {}", s.verdict.headline);
-    println!(
-        "top effect: {} ({} {:.1} %, {} {:.1} %; fit {:.1} → {:.1} % on the {} channel); stack {:?}: {} {:.1} %, {} {:.1} %",
-        s.top_effect.as_deref().unwrap_or("none"),
-        figures::PRIMARY,
-        s.gap_shrink_pct,
-        figures::WEIGHTED,
-        s.gap_shrink_weighted_pct,
-        s.heldout_fit_before,
-        s.heldout_fit_after,
-        s.primary_channel,
-        s.stack,
-        figures::PRIMARY,
-        s.gap_shrink_stack_pct,
-        figures::WEIGHTED,
-        s.gap_shrink_stack_weighted_pct
-    );
-    println!(
-        "wrote {}/{{report.md, summary.json, *.png}}",
-        args.out.display()
-    );
-    Ok(())
 }

@@ -126,3 +126,51 @@ pub fn check(
         _ => None,
     }
 }
+
+/// The implausible fits (`names`) that stay implausible *and* matter once
+/// the library stack is in the model: each refitted on what the stack
+/// leaves on the training part, counted only if it is still implausible
+/// and still removes `MIN_FINDING_PCT` of that remainder's gap. An effect
+/// bent out of shape to reach the stack's signature (a lead error soaking
+/// up a load offset's deflection) fits plausibly, or to nothing, once that
+/// signature is gone; one still bent and still explaining a share says
+/// the gap holds something the stack does not explain either. (An
+/// opposite-signed friction pair fits any trace of an offset with a ratio
+/// of one: its ratio alone says nothing once the offset is a few per cent
+/// of the floor — on a closed-world load offset of 94 % shrink it did.)
+pub fn still_implausible(
+    names: &[String],
+    stack: (&[super::fit::Term], &[f64]),
+    train: &[&Segment],
+    nominal: &Nominal,
+    w: &[f64; super::residual::NCH],
+) -> Vec<String> {
+    let rest: Vec<Segment> = train
+        .iter()
+        .map(|s| {
+            let p = super::fit::predict(stack.0, stack.1, s, nominal);
+            let mut s = super::slice_segment(s, 0, s.len(), s.heldout);
+            for (r, p) in s.r.iter_mut().zip(&p) {
+                if let (Some(r), Some(p)) = (r.as_mut(), p) {
+                    r.iter_mut().zip(p).for_each(|(a, b)| *a -= b);
+                }
+            }
+            s
+        })
+        .collect();
+    let refs: Vec<&Segment> = rest.iter().collect();
+    let before = super::fit::gap(&refs, None, w);
+    names
+        .iter()
+        .filter(|n| {
+            let Some(e) = super::effects::by_name(n) else {
+                return false;
+            };
+            super::fit::fit_effect(e, &refs, nominal, w).is_ok_and(|f| {
+                check(e, &f.params, nominal, &refs).is_some()
+                    && super::figures::shrink(before, f.train_gap) >= super::MIN_FINDING_PCT
+            })
+        })
+        .cloned()
+        .collect()
+}

@@ -128,9 +128,21 @@ pub fn rank(
     ranked.sort_by(|a, b| b.0.weighted_shrink_pct.total_cmp(&a.0.weighted_shrink_pct));
 
     // Primary channel: where the top effect removes the most (weighted
-    // energy), else the channel with the worst held-out fit.
+    // energy) — if it is a finding, removing `MIN_FINDING_PCT` of some
+    // channel's gap — else the channel with the worst held-out fit. A
+    // best-of-nothing effect (every shrink under the floor's noise) says
+    // nothing about where the gap is: a dead-time term that trims 1 % of
+    // the voltage channel once made that channel "primary" for a force
+    // that acts on torque and position only.
     let avail: Vec<usize> = (0..NCH).filter(|c| fit_before_h[*c].is_some()).collect();
-    let primary = match ranked.first() {
+    let finding = ranked.first().filter(|r| {
+        r.0.weighted_shrink_pct > 0.0
+            && r.0
+                .heldout_shrink_by_channel
+                .values()
+                .any(|v| *v >= MIN_FINDING_PCT)
+    });
+    let primary = match finding {
         Some((_, _, _, pred)) => {
             let gain = |c: usize| {
                 let mut wc = [0.0; NCH];

@@ -227,24 +227,49 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
         Novel::TorqueConstantDrop => {
             // NdFeB flux −0.12 %/K; the magnets warm by ΔT_max (1 − e^{−t/τ})
             // from the training run's start on; the held-out run follows it.
-            // The drive then needs 1/(1 − β ΔT) of the current for the same
-            // torque (the plant's torque is the nominal K_t × its current).
+            // The torque constant and the back-EMF are both 1.5 p ψ_f and
+            // p ω ψ_f: the drive needs 1/(1 − β ΔT) of the current for the
+            // same torque (the plant's torque is the nominal K_t × its
+            // current), and the current loop, in steady state, commands
+            // u_q = R i_q + L di_q/dt + p ω ψ_f (1 − β ΔT): the logged u_q
+            // loses the back-EMF's share and gains R × the extra current.
             let (dtm, tau, beta) = (rng.random_range(40.0..80.0), 3.0, 1.2e-3);
-            let drop = move |t0: f64| {
-                move |i: &[f64], cols: &BTreeMap<String, Vec<f64>>| {
-                    let t = &cols["time_s"];
-                    (0..i.len())
-                        .map(|k| i[k] / (1.0 - beta * dtm * (1.0 - (-(t[k] + t0) / tau).exp())))
-                        .collect()
-                }
+            let warm = move |l: Log, t0: f64| {
+                let mut cols = l.columns.clone();
+                let (t, i, th, u) = (
+                    &l.columns["time_s"],
+                    &l.columns["current_q_a"],
+                    &l.columns["motor_angle_rad"],
+                    &l.columns["voltage_q_v"],
+                );
+                let n = t.len();
+                let drop: Vec<f64> = t
+                    .iter()
+                    .map(|tk| beta * dtm * (1.0 - (-(tk + t0) / tau).exp()))
+                    .collect();
+                let i_new: Vec<f64> = (0..n).map(|k| i[k] / (1.0 - drop[k])).collect();
+                // Motor speed by central differences of the logged angle.
+                let om = |k: usize| {
+                    let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+                    if b > a {
+                        (th[b] - th[a]) / (t[b] - t[a])
+                    } else {
+                        0.0
+                    }
+                };
+                let u_new: Vec<f64> = (0..n)
+                    .map(|k| {
+                        u[k] + p.r_ohm * (i_new[k] - i[k])
+                            - p.pole_pairs * om(k) * p.flux_wb * drop[k]
+                    })
+                    .collect();
+                cols.insert("current_q_a".into(), i_new);
+                cols.insert("voltage_q_v".into(), u_new);
+                Log::from_columns(&l.source, cols).expect("transformed log")
             };
             Logs {
-                train: with_column(&run_exp(rig, &none, 1000 + seed), "current_q_a", drop(0.0)),
-                held: with_column(
-                    &run_exp(rig, &none, 2000 + seed),
-                    "current_q_a",
-                    drop(DURATION_S),
-                ),
+                train: warm(run_exp(rig, &none, 1000 + seed), 0.0),
+                held: warm(run_exp(rig, &none, 2000 + seed), DURATION_S),
                 held_events_s: vec![],
             }
         }
