@@ -369,7 +369,8 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
             v
         }
         Err(e) => {
-            warn!("parameters: image defaults (saved set invalid on this board: {=str})", e.field);
+            let field = proto::params::name(usize::from(e.leaf)).map(|(path, _)| path).unwrap_or_default();
+            warn!("parameters: image defaults (saved set invalid on this board: {=str}: {=str})", field.as_str(), e.reason);
             board::VALID_PARAMS
         }
     }

@@ -30,6 +30,7 @@ fn table_and_tree_agree_on_every_leaf() {
     for i in 0..LEAF_COUNT {
         let (path, kind) = paths::name(i).unwrap();
         assert_eq!(paths::index_of(&path), Some(i), "{path}");
+        assert_eq!(leaves::path(i), path.as_str(), "the table's own path list");
         let old = leaves::get(&base, i).unwrap();
         assert_eq!(tree::get(&base, &path), Some(old), "{path}: read through both");
         let new = other_value(kind, old, i);

@@ -170,7 +170,7 @@ fn records_round_trip_and_every_corruption_is_named() {
     let mut bad = ControlParams::DEFAULT;
     bad.current_pi.kp = -1.0;
     let rec_bad = record::encode(&bad, &mut buf).unwrap().to_vec();
-    assert!(matches!(record::decode(&rec_bad), Err(RecordError::Invalid(e)) if e.field == "control.current_pi.kp"));
+    assert!(matches!(record::decode(&rec_bad), Err(RecordError::Invalid(e)) if e.field() == "control.current_pi.kp"));
 }
 
 #[test]

@@ -54,7 +54,9 @@ macro_rules! leaves {
             kind: kind_of(&ControlParams::DEFAULT.$($f).+),
         },)*];
         /// Number of parameters.
-        pub const LEAF_COUNT: usize = [$(stringify!($($f).+),)*].len();
+        pub const LEAF_COUNT: usize = PATHS.len();
+        /// The leaves' paths, for the host and compile-time messages.
+        const PATHS: &[&str] = &[$(concat!("control.", stringify!($($f).+)),)*];
     };
 }
 
@@ -205,6 +207,22 @@ macro_rules! leaf {
         const _: () = assert!(I != u16::MAX, "not a leaf");
         I
     }};
+}
+
+/// The path of leaf `index` (`""` if there is none). For the host and for
+/// compile-time messages: the drive names leaves through the tree
+/// (`protocol::params::name`), so this table stays out of the image.
+pub const fn path(index: usize) -> &'static str {
+    let mut rest: &[&str] = PATHS;
+    let mut i = 0;
+    while let [first, tail @ ..] = rest {
+        if i == index {
+            return first;
+        }
+        rest = tail;
+        i += 1;
+    }
+    ""
 }
 
 /// Why a leaf could not be written.

@@ -16,7 +16,7 @@ use super::messages::*;
 use super::params::{self as paths, PathError, PARAM_COUNT};
 use super::SCHEMA_HASH;
 use crate::controller::{ApplyError, Command, CommandError};
-use crate::params::{record, ControlParams, ValidatedParams};
+use crate::params::{record, ControlParams, ParamError, ValidatedParams};
 use crate::telemetry::{Mode, Telemetry};
 
 /// Who the drive is, for `Info`.
@@ -73,6 +73,13 @@ fn path_of(s: &str) -> Path {
 
 fn invalid(field: &str, reason: &str) -> Error {
     Error::InvalidParam { field: path_of(field), reason: text(reason) }
+}
+
+/// A validation refusal, the field named by its path (through the tree:
+/// the drive holds no table of paths).
+fn invalid_param(e: ParamError) -> Error {
+    let field = paths::name(usize::from(e.leaf)).map(|(path, _)| path).unwrap_or_default();
+    Error::InvalidParam { field, reason: text(e.reason) }
 }
 
 fn stream_error(reason: &str) -> Error {
@@ -220,7 +227,7 @@ impl Server {
             PathError::WrongType(expected) => Error::WrongType { path: path.clone(), expected },
             PathError::NoSuchVariant => invalid(path, "no such variant"),
         })?;
-        let validated = ValidatedParams::new(staged).map_err(|e| invalid(e.field, e.reason))?;
+        let validated = ValidatedParams::new(staged).map_err(invalid_param)?;
         if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
             return Err(Error::NeedsBridgeOff { path: path.clone() });
         }
@@ -286,7 +293,7 @@ impl Server {
         if !p.startup.commutation_known {
             p.encoder.electrical_offset_rad = drive.params().encoder.electrical_offset_rad;
         }
-        let set = ValidatedParams::new(p).map_err(|e| invalid(e.field, e.reason))?;
+        let set = ValidatedParams::new(p).map_err(invalid_param)?;
         self.last_point = None;
         drive.apply_params(&set).map_err(|e| match e {
             ApplyError::NeedsBridgeOff { field } => Error::NeedsBridgeOff { path: path_of(field) },

@@ -232,7 +232,7 @@ fn main() -> ! {
         _ => match Controller::try_new(params) {
             Ok(c) => c,
             Err(e) => {
-                sink(5, e.field.len() as u32);
+                sink(5, u32::from(e.leaf));
                 Controller::new(ControlParams::DEFAULT)
             }
         },
