@@ -18,8 +18,8 @@ use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Rea
 use super::link::{BulkIn, BulkOut, CaptureOp, Reply, CAPTURE};
 use super::ServoBoard;
 
-/// `ApplyError` field named when the interrupt did not answer (the link's
-/// only way to say so through `DriveAccess::apply_params`).
+/// The reason given when the interrupt did not answer a capture or test
+/// request (the link's only way to say so through `DriveAccess`).
 pub const NO_ANSWER_FIELD: &str = "(link: the PWM interrupt did not answer)";
 
 /// Thread mode's copy of the controller's parameters, kept across
@@ -115,7 +115,7 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
                 }
                 r
             }
-            Err(_) => Err(ApplyError::NeedsBridgeOff { field: NO_ANSWER_FIELD }),
+            Err(_) => Err(ApplyError::NoAnswer),
         }
     }
 

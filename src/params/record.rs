@@ -19,10 +19,10 @@
 //! the layout: the table follows the struct's declaration order, which the
 //! hash covers too. A `CSP1` record is refused by its magic.
 
-use crc::{Crc, CRC_32_ISO_HDLC};
 
 use super::leaves::{self, LEAF_COUNT};
 use super::{ControlParams, ParamError, ValidatedParams};
+use crate::protocol::frame::CRC;
 use crate::protocol::PARAMS_SCHEMA_HASH;
 
 pub const MAGIC: [u8; 4] = *b"CSP2";
@@ -34,7 +34,6 @@ const CRC_BYTES: usize = 4;
 /// Bytes per leaf in the body.
 const WORD: usize = 4;
 const BODY: usize = LEAF_COUNT * WORD;
-const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
 /// Why a record was not used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

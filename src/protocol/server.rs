@@ -78,8 +78,12 @@ fn invalid(field: &str, reason: &str) -> Error {
 /// A validation refusal, the field named by its path (through the tree:
 /// the drive holds no table of paths).
 fn invalid_param(e: ParamError) -> Error {
-    let field = paths::name(usize::from(e.leaf)).map(|(path, _)| path).unwrap_or_default();
-    Error::InvalidParam { field, reason: text(e.reason) }
+    Error::InvalidParam { field: leaf_path(e.leaf), reason: text(e.reason) }
+}
+
+/// The path of leaf `leaf` (empty if there is none).
+fn leaf_path(leaf: u16) -> Path {
+    paths::name(usize::from(leaf)).map(|(path, _)| path).unwrap_or_default()
 }
 
 fn stream_error(reason: &str) -> Error {
@@ -233,6 +237,7 @@ impl Server {
         }
         drive.apply_params(&validated).map_err(|e| match e {
             ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { path: path.clone() },
+            ApplyError::NoAnswer => Error::Busy,
         })?;
         let value = paths::get(&staged, path).map_err(|_| Error::UnknownPath { path: path.clone() })?;
         Ok(Reply::Param { path: path.clone(), value })
@@ -296,7 +301,8 @@ impl Server {
         let set = ValidatedParams::new(p).map_err(invalid_param)?;
         self.last_point = None;
         drive.apply_params(&set).map_err(|e| match e {
-            ApplyError::NeedsBridgeOff { field } => Error::NeedsBridgeOff { path: path_of(field) },
+            ApplyError::NeedsBridgeOff { leaf } => Error::NeedsBridgeOff { path: leaf_path(leaf) },
+            ApplyError::NoAnswer => Error::Busy,
         })
     }
 

@@ -79,7 +79,7 @@ impl DriveAccess for MockDrive {
     fn apply_params(&mut self, p: &ValidatedParams) -> Result<(), ApplyError> {
         if !matches!(self.mode, Mode::Disabled | Mode::Fault) {
             if let Some(field) = self.params.bridge_off_change(p.get()) {
-                return Err(ApplyError::NeedsBridgeOff { field });
+                return Err(ApplyError::NeedsBridgeOff { leaf: field });
             }
         }
         self.params = *p.get();
