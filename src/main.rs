@@ -370,7 +370,7 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
         }
         Err(e) => {
             let field = proto::params::name(usize::from(e.leaf)).map(|(path, _)| path).unwrap_or_default();
-            warn!("parameters: image defaults (saved set invalid on this board: {=str}: {=str})", field.as_str(), e.reason);
+            warn!("parameters: image defaults (saved set invalid on this board: {=str}: {})", field.as_str(), e.reason);
             board::VALID_PARAMS
         }
     }
@@ -479,11 +479,11 @@ impl CanStream {
             Some(DriveFrame::Reply { reply: proto::Reply::Error(e), .. }) => {
                 self.refused = self.refused.wrapping_add(1);
                 if self.refused.is_power_of_two() {
-                    let why = match &e {
-                        proto::Error::Stream { reason } => reason.as_str(),
-                        _ => "stop refused",
-                    };
-                    warn!("CAN setpoint refused ({=u32} so far): {=str}", self.refused, why);
+                    // The reason by its code's name (defmt: no text in flash).
+                    match &e {
+                        proto::Error::Stream { reason } => warn!("CAN setpoint refused ({=u32} so far): {}", self.refused, reason),
+                        _ => warn!("CAN stop refused ({=u32} so far)", self.refused),
+                    }
                 }
             }
             _ => self.accepted = self.accepted.wrapping_add(1),

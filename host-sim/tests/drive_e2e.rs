@@ -125,7 +125,7 @@ fn bad_input_gets_error_replies() {
     let seq = c.send(Request::Stream(StreamPoint { position_m: f32::NAN, velocity_m_s: 0.0, force_n: None })).unwrap();
     c.poll(Duration::from_millis(200)).unwrap();
     assert!(
-        c.unsolicited.iter().any(|u| u.seq == seq && matches!(&u.error, Reply::Error(Error::Stream { reason }) if reason.contains("not finite"))),
+        c.unsolicited.iter().any(|u| u.seq == seq && matches!(&u.error, Reply::Error(Error::Stream { reason }) if reason.text().contains("not finite"))),
         "{:?}",
         c.unsolicited
     );

@@ -3,6 +3,7 @@
 
 use super::ControlParams;
 use crate::leaf;
+use crate::protocol::Reason;
 
 /// A parameter that cannot be used: its leaf index (`params::leaves`;
 /// [`ParamError::field`] is its path in the TOML file) and why.
@@ -14,7 +15,7 @@ use crate::leaf;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ParamError {
     pub leaf: u16,
-    pub reason: &'static str,
+    pub reason: Reason,
 }
 
 impl ParamError {
@@ -57,9 +58,9 @@ impl ValidatedParams {
 #[inline(never)]
 const fn positive(leaf: u16, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
-        Err(ParamError { leaf, reason: "must be finite" })
+        Err(ParamError { leaf, reason: Reason::MustBeFinite })
     } else if v <= 0.0 {
-        Err(ParamError { leaf, reason: "must be > 0" })
+        Err(ParamError { leaf, reason: Reason::MustBePositive })
     } else {
         Ok(())
     }
@@ -70,9 +71,9 @@ const fn positive(leaf: u16, v: f32) -> Result<(), ParamError> {
 #[inline(never)]
 const fn non_negative(leaf: u16, v: f32) -> Result<(), ParamError> {
     if !v.is_finite() {
-        Err(ParamError { leaf, reason: "must be finite" })
+        Err(ParamError { leaf, reason: Reason::MustBeFinite })
     } else if v < 0.0 {
-        Err(ParamError { leaf, reason: "must be >= 0" })
+        Err(ParamError { leaf, reason: Reason::MustBeNonNegative })
     } else {
         Ok(())
     }
@@ -82,7 +83,7 @@ const fn non_negative(leaf: u16, v: f32) -> Result<(), ParamError> {
 // run-time validation is not on any fast path).
 #[inline(never)]
 const fn nonzero(leaf: u16, v: u32) -> Result<(), ParamError> {
-    if v == 0 { Err(ParamError { leaf, reason: "must be >= 1" }) } else { Ok(()) }
+    if v == 0 { Err(ParamError { leaf, reason: Reason::MustBeAtLeastOne }) } else { Ok(()) }
 }
 
 /// `?` for `const fn`s (the trait-based `?` is not const).
@@ -107,7 +108,7 @@ impl ControlParams {
         check!(positive(leaf!(drive_train.screw_lead_m), d.screw_lead_m));
         check!(positive(leaf!(drive_train.screw_efficiency), d.screw_efficiency));
         if d.screw_efficiency > 1.0 {
-            return Err(ParamError { leaf: leaf!(drive_train.screw_efficiency), reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(drive_train.screw_efficiency), reason: Reason::MustBeAtMostOne });
         }
         check!(positive(leaf!(drive_train.rotating_inertia_kg_m2), d.rotating_inertia_kg_m2));
         check!(non_negative(leaf!(drive_train.moving_mass_kg), d.moving_mass_kg));
@@ -118,7 +119,7 @@ impl ControlParams {
         if d.friction_feedforward_gain > 1.0 {
             // Above the modelled friction the feedforward drives the rod
             // ahead of its reference at every start.
-            return Err(ParamError { leaf: leaf!(drive_train.friction_feedforward_gain), reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(drive_train.friction_feedforward_gain), reason: Reason::MustBeAtMostOne });
         }
         check!(positive(leaf!(rates.pwm_frequency_hz), self.rates.pwm_frequency_hz));
         check!(nonzero(leaf!(rates.speed_loop_divider), self.rates.speed_loop_divider));
@@ -126,7 +127,7 @@ impl ControlParams {
         if !self.rates.position_loop_divider.is_multiple_of(self.rates.speed_loop_divider) {
             return Err(ParamError {
                 leaf: leaf!(rates.position_loop_divider),
-                reason: "must be a multiple of speed_loop_divider",
+                reason: Reason::MultipleOfSpeedDivider,
             });
         }
         check!(positive(leaf!(current_pi.kp), self.current_pi.kp));
@@ -139,13 +140,13 @@ impl ControlParams {
         check!(nonzero(leaf!(encoder.counts_per_rev), e.counts_per_rev));
         if e.counts_per_rev > 32_768 {
             // The core unwraps a 16-bit counter: one revolution must fit in half its range.
-            return Err(ParamError { leaf: leaf!(encoder.counts_per_rev), reason: "must be <= 32768" });
+            return Err(ParamError { leaf: leaf!(encoder.counts_per_rev), reason: Reason::CountsPerRevTooHigh });
         }
         if e.direction != 1 && e.direction != -1 {
-            return Err(ParamError { leaf: leaf!(encoder.direction), reason: "must be 1 or -1" });
+            return Err(ParamError { leaf: leaf!(encoder.direction), reason: Reason::MustBeOneOrMinusOne });
         }
         if !e.electrical_offset_rad.is_finite() {
-            return Err(ParamError { leaf: leaf!(encoder.electrical_offset_rad), reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(encoder.electrical_offset_rad), reason: Reason::MustBeFinite });
         }
         check!(positive(leaf!(encoder.pll_kp_per_s), e.pll_kp_per_s));
         check!(positive(leaf!(encoder.pll_ki_per_s2), e.pll_ki_per_s2));
@@ -160,24 +161,24 @@ impl ControlParams {
         check!(non_negative(leaf!(limits.stroke_min_m), l.stroke_min_m));
         check!(positive(leaf!(limits.stroke_max_m), l.stroke_max_m));
         if l.stroke_max_m <= l.stroke_min_m {
-            return Err(ParamError { leaf: leaf!(limits.stroke_max_m), reason: "must exceed stroke_min_m" });
+            return Err(ParamError { leaf: leaf!(limits.stroke_max_m), reason: Reason::MustExceedStrokeMin });
         }
         check!(positive(leaf!(limits.max_modulation), l.max_modulation));
         if l.max_modulation > 1.0 {
-            return Err(ParamError { leaf: leaf!(limits.max_modulation), reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(limits.max_modulation), reason: Reason::MustBeAtMostOne });
         }
         let f = &self.faults;
         check!(positive(leaf!(faults.overcurrent_trip_a), f.overcurrent_trip_a));
         if f.overcurrent_trip_a < l.current_max_a {
             return Err(ParamError {
                 leaf: leaf!(faults.overcurrent_trip_a),
-                reason: "must be >= limits.current_max_a, or normal operation trips",
+                reason: Reason::TripBelowCurrentLimit,
             });
         }
         check!(positive(leaf!(faults.bus_overvoltage_v), f.bus_overvoltage_v));
         check!(positive(leaf!(faults.bus_undervoltage_v), f.bus_undervoltage_v));
         if f.bus_overvoltage_v <= f.bus_undervoltage_v {
-            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: "must exceed bus_undervoltage_v" });
+            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: Reason::MustExceedBusUndervoltage });
         }
         check!(nonzero(leaf!(faults.encoder_max_step_counts), f.encoder_max_step_counts));
         check!(positive(leaf!(faults.encoder_max_innovation_counts), f.encoder_max_innovation_counts));
@@ -193,14 +194,14 @@ impl ControlParams {
         if f.stroke_soft_margin_m >= f.stroke_overtravel_m {
             return Err(ParamError {
                 leaf: leaf!(faults.stroke_soft_margin_m),
-                reason: "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
+                reason: Reason::MarginNotBelowOvertravel,
             });
         }
         check!(positive(leaf!(faults.stop_deceleration_m_s2), f.stop_deceleration_m_s2));
         if f.stop_deceleration_m_s2 < self.trajectory.max_acceleration_m_s2 {
             return Err(ParamError {
                 leaf: leaf!(faults.stop_deceleration_m_s2),
-                reason: "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
+                reason: Reason::StopDecelerationTooLow,
             });
         }
         check!(positive(leaf!(faults.observer_shift_max_m), f.observer_shift_max_m));
@@ -211,7 +212,7 @@ impl ControlParams {
         check!(positive(leaf!(faults.open_phase_current_a), f.open_phase_current_a));
         check!(positive(leaf!(faults.open_phase_ratio), f.open_phase_ratio));
         if f.open_phase_ratio >= 1.0 {
-            return Err(ParamError { leaf: leaf!(faults.open_phase_ratio), reason: "must be < 1" });
+            return Err(ParamError { leaf: leaf!(faults.open_phase_ratio), reason: Reason::MustBeBelowOne });
         }
         let b = &self.brake;
         check!(non_negative(leaf!(brake.release_time_s), b.release_time_s));
@@ -223,22 +224,22 @@ impl ControlParams {
         if c.shift_max_m > f.observer_shift_max_m {
             return Err(ParamError {
                 leaf: leaf!(compensation.shift_max_m),
-                reason: "must be <= faults.observer_shift_max_m",
+                reason: Reason::AboveObserverShiftMax,
             });
         }
         check!(positive(leaf!(compensation.shift_rate_max_m_s), c.shift_rate_max_m_s));
         let th = &self.thermal;
         check!(positive(leaf!(thermal.continuous_current_a), th.continuous_current_a));
         if th.continuous_current_a > l.current_max_a {
-            return Err(ParamError { leaf: leaf!(thermal.continuous_current_a), reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(thermal.continuous_current_a), reason: Reason::AboveCurrentLimit });
         }
         check!(positive(leaf!(thermal.time_constant_s), th.time_constant_s));
         check!(positive(leaf!(thermal.foldback_start), th.foldback_start));
         if th.foldback_start >= 1.0 {
-            return Err(ParamError { leaf: leaf!(thermal.foldback_start), reason: "must be < 1" });
+            return Err(ParamError { leaf: leaf!(thermal.foldback_start), reason: Reason::MustBeBelowOne });
         }
         if !(th.trip_level > 1.0) || !th.trip_level.is_finite() {
-            return Err(ParamError { leaf: leaf!(thermal.trip_level), reason: "must be finite and > 1" });
+            return Err(ParamError { leaf: leaf!(thermal.trip_level), reason: Reason::MustBeFiniteAboveOne });
         }
         let r = &self.ratings;
         check!(positive(leaf!(ratings.motor_peak_current_a), r.motor_peak_current_a));
@@ -248,20 +249,20 @@ impl ControlParams {
         if l.current_max_a > r.motor_peak_current_a || l.current_max_a > r.inverter_peak_current_a {
             return Err(ParamError {
                 leaf: leaf!(limits.current_max_a),
-                reason: "above the motor or inverter peak rating (control.ratings)",
+                reason: Reason::AbovePeakRating,
             });
         }
         if f.overcurrent_trip_a > r.inverter_peak_current_a {
             return Err(ParamError {
                 leaf: leaf!(faults.overcurrent_trip_a),
-                reason: "above control.ratings.inverter_peak_current_a",
+                reason: Reason::AboveInverterPeakRating,
             });
         }
         if f.bus_overvoltage_v > r.bus_max_voltage_v {
-            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: "above control.ratings.bus_max_voltage_v" });
+            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: Reason::AboveBusRating });
         }
         if l.speed_max_rad_s > r.speed_max_rad_s {
-            return Err(ParamError { leaf: leaf!(limits.speed_max_rad_s), reason: "above control.ratings.speed_max_rad_s" });
+            return Err(ParamError { leaf: leaf!(limits.speed_max_rad_s), reason: Reason::AboveSpeedRating });
         }
         Ok(())
     }
@@ -272,7 +273,7 @@ impl ControlParams {
     const fn validate_lifecycle(&self) -> Result<(), ParamError> {
         let l = &self.limits;
         if !self.startup.expected_load_force_n.is_finite() {
-            return Err(ParamError { leaf: leaf!(startup.expected_load_force_n), reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(startup.expected_load_force_n), reason: Reason::MustBeFinite });
         }
         let c = &self.calibration;
         check!(positive(leaf!(calibration.duration_s), c.duration_s));
@@ -282,7 +283,7 @@ impl ControlParams {
         let m = &self.commutation;
         check!(positive(leaf!(commutation.test_current_a), m.test_current_a));
         if m.test_current_a > l.current_max_a {
-            return Err(ParamError { leaf: leaf!(commutation.test_current_a), reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(commutation.test_current_a), reason: Reason::AboveCurrentLimit });
         }
         check!(positive(leaf!(commutation.ramp_s), m.ramp_s));
         check!(positive(leaf!(commutation.sweep_s), m.sweep_s));
@@ -293,33 +294,33 @@ impl ControlParams {
         check!(positive(leaf!(commutation.max_twist_rad), m.max_twist_rad));
         check!(positive(leaf!(commutation.hold_current_d_a), m.hold_current_d_a));
         if m.hold_current_d_a > l.current_max_a {
-            return Err(ParamError { leaf: leaf!(commutation.hold_current_d_a), reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(commutation.hold_current_d_a), reason: Reason::AboveCurrentLimit });
         }
         check!(positive(leaf!(commutation.check_angle_rad), m.check_angle_rad));
         check!(positive(leaf!(commutation.check_time_s), m.check_time_s));
         check!(positive(leaf!(commutation.ratio_tolerance), m.ratio_tolerance));
         check!(positive(leaf!(commutation.blocked_ratio), m.blocked_ratio));
         if m.blocked_ratio >= 1.0 - m.ratio_tolerance {
-            return Err(ParamError { leaf: leaf!(commutation.blocked_ratio), reason: "must be below 1 - ratio_tolerance" });
+            return Err(ParamError { leaf: leaf!(commutation.blocked_ratio), reason: Reason::BlockedRatioTooHigh });
         }
         check!(positive(leaf!(commutation.timeout_s), m.timeout_s));
         let h = &self.homing;
         if h.direction != 1 && h.direction != -1 {
-            return Err(ParamError { leaf: leaf!(homing.direction), reason: "must be 1 or -1" });
+            return Err(ParamError { leaf: leaf!(homing.direction), reason: Reason::MustBeOneOrMinusOne });
         }
         check!(positive(leaf!(homing.speed_m_s), h.speed_m_s));
         if h.speed_m_s > self.trajectory.max_velocity_m_s {
-            return Err(ParamError { leaf: leaf!(homing.speed_m_s), reason: "must be <= trajectory.max_velocity_m_s" });
+            return Err(ParamError { leaf: leaf!(homing.speed_m_s), reason: Reason::AboveTrajectoryVelocity });
         }
         check!(positive(leaf!(homing.current_max_a), h.current_max_a));
         if h.current_max_a > l.current_max_a {
-            return Err(ParamError { leaf: leaf!(homing.current_max_a), reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(homing.current_max_a), reason: Reason::AboveCurrentLimit });
         }
         check!(positive(leaf!(homing.contact_following_m), h.contact_following_m));
         check!(positive(leaf!(homing.contact_speed_rad_s), h.contact_speed_rad_s));
         check!(positive(leaf!(homing.contact_time_s), h.contact_time_s));
         if !h.home_position_m.is_finite() {
-            return Err(ParamError { leaf: leaf!(homing.home_position_m), reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(homing.home_position_m), reason: Reason::MustBeFinite });
         }
         check!(non_negative(leaf!(homing.backoff_m), h.backoff_m));
         check!(positive(leaf!(homing.travel_max_m), h.travel_max_m));
@@ -327,16 +328,16 @@ impl ControlParams {
         let p = &self.power_stage;
         check!(positive(leaf!(power_stage.temperature_foldback_c), p.temperature_foldback_c));
         if p.temperature_trip_c <= p.temperature_foldback_c || !p.temperature_trip_c.is_finite() {
-            return Err(ParamError { leaf: leaf!(power_stage.temperature_trip_c), reason: "must exceed temperature_foldback_c" });
+            return Err(ParamError { leaf: leaf!(power_stage.temperature_trip_c), reason: Reason::MustExceedTemperatureFoldback });
         }
         check!(positive(leaf!(power_stage.regen_bus_start_v), p.regen_bus_start_v));
         if p.regen_bus_max_v <= p.regen_bus_start_v || !p.regen_bus_max_v.is_finite() {
-            return Err(ParamError { leaf: leaf!(power_stage.regen_bus_max_v), reason: "must exceed regen_bus_start_v" });
+            return Err(ParamError { leaf: leaf!(power_stage.regen_bus_max_v), reason: Reason::MustExceedRegenStart });
         }
         if p.regen_bus_max_v > self.faults.bus_overvoltage_v {
             return Err(ParamError {
                 leaf: leaf!(power_stage.regen_bus_max_v),
-                reason: "must be <= faults.bus_overvoltage_v, or regeneration trips the drive first",
+                reason: Reason::RegenAboveOvervoltage,
             });
         }
         check!(non_negative(leaf!(power_stage.regen_power_max_w), p.regen_power_max_w));
@@ -344,10 +345,10 @@ impl ControlParams {
         check!(positive(leaf!(power_stage.emf_mismatch_time_s), p.emf_mismatch_time_s));
         check!(positive(leaf!(stream.period_max_s), self.stream.period_max_s));
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
-            return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: "must be >= stream.period_max_s" });
+            return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
         }
         if self.stream.leg_index >= crate::protocol::can::LEGS as u32 {
-            return Err(ParamError { leaf: leaf!(stream.leg_index), reason: "must be 0..=5 (a slot of the CAN setpoint frame)" });
+            return Err(ParamError { leaf: leaf!(stream.leg_index), reason: Reason::NoSuchLegSlot });
         }
         Ok(())
     }

@@ -11,14 +11,15 @@ use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
 use crate::controller::{CommandError, CommandOutcome};
+use super::reason::Reason;
 use crate::telemetry::Mode;
 
 /// Longest dotted parameter path
 /// (`control.drive_train.friction_feedforward_speed_rad_s` is 52; checked
 /// at compile time in `params.rs`).
 pub const PATH_MAX: usize = 64;
-/// Longest free text in a reply (an error's reason, a version string): the
-/// longest `ParamError` reason is 82.
+/// Longest free text in a reply (a version string, a storage error's
+/// reason; refusals carry a [`Reason`] code).
 pub const TEXT_MAX: usize = 96;
 /// Signals one capture records at most.
 pub const CAPTURE_SIGNALS_MAX: usize = 4;
@@ -302,7 +303,7 @@ pub enum Error {
     /// The value has another type than the parameter.
     WrongType { path: Path, expected: ValueKind },
     /// The set would not validate: the field and why (NaN, out of range…).
-    InvalidParam { field: Path, reason: Text },
+    InvalidParam { field: Path, reason: Reason },
     /// This parameter changes only with the bridge off.
     NeedsBridgeOff { path: Path },
     /// Save or load refused while the bridge is on.
@@ -312,10 +313,10 @@ pub enum Error {
     /// The controller refused the command.
     Command(CommandError),
     /// A stream point beyond a limit, or a stream in the wrong state.
-    Stream { reason: Text },
+    Stream { reason: Reason },
     /// Capture or test request not possible now, or out of range.
-    Capture { reason: Text },
-    Test { reason: Text },
+    Capture { reason: Reason },
+    Test { reason: Reason },
     /// The drive is busy with a request of this kind (e.g. a save running).
     Busy,
 }

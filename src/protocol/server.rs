@@ -14,6 +14,7 @@ use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use super::frame::{decode, Feed, FrameReader};
 use super::messages::*;
 use super::params::{self as paths, PathError, PARAM_COUNT};
+use super::reason::Reason;
 use super::SCHEMA_HASH;
 use crate::controller::{ApplyError, Command, CommandError};
 use crate::params::{record, ControlParams, ParamError, ValidatedParams};
@@ -71,14 +72,14 @@ fn path_of(s: &str) -> Path {
     p
 }
 
-fn invalid(field: &str, reason: &str) -> Error {
-    Error::InvalidParam { field: path_of(field), reason: text(reason) }
+fn invalid(field: &str, reason: Reason) -> Error {
+    Error::InvalidParam { field: path_of(field), reason }
 }
 
 /// A validation refusal, the field named by its path (through the tree:
 /// the drive holds no table of paths).
 fn invalid_param(e: ParamError) -> Error {
-    Error::InvalidParam { field: leaf_path(e.leaf), reason: text(e.reason) }
+    Error::InvalidParam { field: leaf_path(e.leaf), reason: e.reason }
 }
 
 /// The path of leaf `leaf` (empty if there is none).
@@ -86,23 +87,23 @@ fn leaf_path(leaf: u16) -> Path {
     paths::name(usize::from(leaf)).map(|(path, _)| path).unwrap_or_default()
 }
 
-fn stream_error(reason: &str) -> Error {
-    Error::Stream { reason: text(reason) }
+fn stream_error(reason: Reason) -> Error {
+    Error::Stream { reason }
 }
 
 /// Why the controller refused a stream point, for `Error::Stream`.
-fn stream_refusal(e: CommandError) -> &'static str {
+fn stream_refusal(e: CommandError) -> Reason {
     match e {
-        CommandError::Faulted(_) | CommandError::CauseStillPresent(_) => "refused: faults latched (ClearFaults)",
-        CommandError::NotRunning => "refused: drive not running (Enable)",
-        CommandError::NotDisabled => "refused: drive not disabled",
-        CommandError::Busy => "refused: a move is in progress",
-        CommandError::NotFinite => "refused: value not finite",
-        CommandError::OutOfRange => "refused: value out of range",
-        CommandError::BusLow => "refused: bus voltage low",
-        CommandError::NotCalibrated => "refused: currents not calibrated",
-        CommandError::NotCommutated => "refused: not commutated (Align)",
-        CommandError::NotHomed => "refused: not homed (Home)",
+        CommandError::Faulted(_) | CommandError::CauseStillPresent(_) => Reason::RefusedFaultsLatched,
+        CommandError::NotRunning => Reason::RefusedNotRunning,
+        CommandError::NotDisabled => Reason::RefusedNotDisabled,
+        CommandError::Busy => Reason::RefusedMoveInProgress,
+        CommandError::NotFinite => Reason::RefusedNotFinite,
+        CommandError::OutOfRange => Reason::RefusedOutOfRange,
+        CommandError::BusLow => Reason::RefusedBusLow,
+        CommandError::NotCalibrated => Reason::RefusedNotCalibrated,
+        CommandError::NotCommutated => Reason::RefusedNotCommutated,
+        CommandError::NotHomed => Reason::RefusedNotHomed,
     }
 }
 
@@ -223,13 +224,13 @@ impl Server {
         let mut staged = present;
         if let Value::F32(v) = value {
             if !v.is_finite() && paths::kind(path).is_ok() {
-                return Err(invalid(path, "must be finite"));
+                return Err(invalid(path, Reason::MustBeFinite));
             }
         }
         paths::set(&mut staged, path, value).map_err(|e| match e {
             PathError::Unknown => Error::UnknownPath { path: path.clone() },
             PathError::WrongType(expected) => Error::WrongType { path: path.clone(), expected },
-            PathError::NoSuchVariant => invalid(path, "no such variant"),
+            PathError::NoSuchVariant => invalid(path, Reason::NoSuchVariant),
         })?;
         let validated = ValidatedParams::new(staged).map_err(invalid_param)?;
         if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
@@ -335,23 +336,23 @@ impl Server {
         let p = drive.params();
         let t = drive.status().telemetry;
         if !sp.position_m.is_finite() {
-            return Err(stream_error("position_m not finite"));
+            return Err(stream_error(Reason::PositionNotFinite));
         }
         if !sp.velocity_m_s.is_finite() {
-            return Err(stream_error("velocity_m_s not finite"));
+            return Err(stream_error(Reason::VelocityNotFinite));
         }
         if sp.force_n.is_some_and(|f| !f.is_finite()) {
-            return Err(stream_error("force_n not finite"));
+            return Err(stream_error(Reason::ForceNotFinite));
         }
         if sp.position_m < p.limits.stroke_min_m {
-            return Err(stream_error("position_m below control.limits.stroke_min_m"));
+            return Err(stream_error(Reason::BelowStrokeMin));
         }
         if sp.position_m > p.limits.stroke_max_m {
-            return Err(stream_error("position_m beyond control.limits.stroke_max_m"));
+            return Err(stream_error(Reason::BeyondStrokeMax));
         }
         let v_max = p.trajectory.max_velocity_m_s;
         if sp.velocity_m_s.abs() > v_max {
-            return Err(stream_error("velocity_m_s beyond control.trajectory.max_velocity_m_s"));
+            return Err(stream_error(Reason::BeyondMaxVelocity));
         }
         let period_max = p.stream.period_max_s;
         let (from_m, interval_s) = match self.last_point {
@@ -359,7 +360,7 @@ impl Server {
                 let gap = t.time_s - last.time_s;
                 if gap > p.stream.timeout_s {
                     self.last_point = None;
-                    return Err(stream_error("gap beyond control.stream.timeout_s: the stream has ended"));
+                    return Err(stream_error(Reason::StreamGap));
                 }
                 (last.position_m, crate::math::clamp(gap, 0.0, period_max))
             }
@@ -369,7 +370,7 @@ impl Server {
         };
         let reach = v_max * (interval_s + STREAM_SLACK_PERIODS * p.position_period_s());
         if !((sp.position_m - from_m).abs() <= reach) {
-            return Err(stream_error("jump beyond control.trajectory.max_velocity_m_s since the last point"));
+            return Err(stream_error(Reason::StreamJump));
         }
         let cmd = Command::Stream { position_m: sp.position_m, velocity_m_s: sp.velocity_m_s, force_n: sp.force_n };
         match drive.command(cmd) {
@@ -386,14 +387,14 @@ impl Server {
 
     fn configure_telemetry<D: DriveAccess>(&mut self, fields: u32, rate_hz: u16, drive: &D) -> Result<Reply, Error> {
         if fields >> TelemetryField::COUNT != 0 {
-            return Err(invalid("telemetry.fields", "bits beyond the last TelemetryField"));
+            return Err(invalid("telemetry.fields", Reason::TelemetryFieldBits));
         }
         // PWM rate over the divider: exact for whole rates (1 / 0.001f32 is
         // 999.99994, which refused a 1 kHz request).
         let r = drive.params().rates;
         let position_rate_hz = r.pwm_frequency_hz / r.position_loop_divider as f32;
         if f32::from(rate_hz) > position_rate_hz {
-            return Err(invalid("telemetry.rate_hz", "above the position-loop rate (the record's rate)"));
+            return Err(invalid("telemetry.rate_hz", Reason::TelemetryRateTooHigh));
         }
         self.telemetry_fields = fields;
         self.telemetry_rate_hz = rate_hz;
@@ -401,24 +402,24 @@ impl Server {
     }
 
     fn capture<D: DriveAccess>(c: &CaptureRequest, drive: &mut D) -> Result<Reply, Error> {
-        let refuse = |reason: &str| Err(Error::Capture { reason: text(reason) });
+        let refuse = |reason: Reason| Err(Error::Capture { reason });
         match c {
             CaptureRequest::Configure(cfg) => {
                 if cfg.signals.is_empty() {
-                    return refuse("no signals");
+                    return refuse(Reason::NoSignals);
                 }
                 if cfg.decimation == 0 {
-                    return refuse("decimation must be >= 1");
+                    return refuse(Reason::DecimationMustBePositive);
                 }
                 if cfg.samples == 0 {
-                    return refuse("samples must be >= 1");
+                    return refuse(Reason::SamplesMustBePositive);
                 }
                 if cfg.pre_trigger > cfg.samples {
-                    return refuse("pre_trigger beyond samples");
+                    return refuse(Reason::PreTriggerBeyondSamples);
                 }
             }
             CaptureRequest::Read { count, .. } if usize::from(*count) > CAPTURE_CHUNK_MAX => {
-                return refuse("count beyond CAPTURE_CHUNK_MAX");
+                return refuse(Reason::CountBeyondChunk);
             }
             _ => {}
         }
@@ -441,7 +442,7 @@ impl Server {
             }
         };
         if !ok {
-            return Err(Error::Test { reason: text("amplitude not finite, or a duration or frequency not > 0") });
+            return Err(Error::Test { reason: Reason::TestArguments });
         }
         drive.test_signal(t).map(|()| Reply::Ok).map_err(|reason| Error::Test { reason })
     }

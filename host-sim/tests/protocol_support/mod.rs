@@ -87,7 +87,7 @@ impl DriveAccess for MockDrive {
         Ok(())
     }
 
-    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, servo_core::protocol::Reason> {
         self.captures += 1;
         match request {
             CaptureRequest::Read { signal, start, count } => {
@@ -98,7 +98,7 @@ impl DriveAccess for MockDrive {
         }
     }
 
-    fn test_signal(&mut self, _: &TestSignal) -> Result<(), Text> {
+    fn test_signal(&mut self, _: &TestSignal) -> Result<(), servo_core::protocol::Reason> {
         self.tests += 1;
         Ok(())
     }
