@@ -369,8 +369,9 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
             v
         }
         Err(e) => {
-            let field = proto::params::name(usize::from(e.leaf)).map(|(path, _)| path).unwrap_or_default();
-            warn!("parameters: image defaults (saved set invalid on this board: {=str}: {})", field.as_str(), e.reason);
+            // The leaf by index: the image holds no parameter names
+            // (`drive param list` shows index and path).
+            warn!("parameters: image defaults (saved set invalid on this board: leaf {=u16}: {})", e.leaf, e.reason);
             board::VALID_PARAMS
         }
     }

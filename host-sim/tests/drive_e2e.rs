@@ -118,7 +118,7 @@ fn bad_input_gets_error_replies() {
     assert!(e.contains("no parameter `control.speed_pi.nope`"), "{e}");
     let e = tool::param_set(&mut c, "speed_pi.kp", "NaN").unwrap_err().to_string();
     assert!(e.contains("finite"), "{e}");
-    let r = c.request(Request::ParamSet { path: "control.speed_pi.kp".try_into().unwrap(), value: Value::Bool(true) }).unwrap();
+    let r = c.request(Request::ParamSet { index: servo_core::leaf!(speed_pi.kp), value: Value::Bool(true) }).unwrap();
     assert!(matches!(r, Reply::Error(Error::WrongType { .. })), "{r:?}");
     // A NaN stream point is refused with its seq.
     enabled(&mut c);

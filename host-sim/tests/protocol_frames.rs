@@ -26,7 +26,7 @@ fn largest_reply_fits_and_round_trips() {
 
 #[test]
 fn a_flipped_bit_is_a_crc_error_not_a_message() {
-    let req = RequestFrame { seq: 7, request: Request::ParamGet { path: "control.speed_pi.kp".try_into().unwrap() } };
+    let req = RequestFrame { seq: 7, request: Request::ParamGet { index: servo_core::leaf!(speed_pi.kp) } };
     let mut buf = [0u8; FRAME_MAX];
     let frame = encode(&req, &mut buf).unwrap().to_vec();
     let mut crc_errors = 0;

@@ -62,8 +62,8 @@ reasons! {
     TimeoutBelowPeriodMax = "must be >= stream.period_max_s",
     NoSuchLegSlot = "must be 0..=5 (a slot of the CAN setpoint frame)",
     NoSuchVariant = "no such variant",
-    TelemetryFieldBits = "bits beyond the last TelemetryField",
-    TelemetryRateTooHigh = "above the position-loop rate (the record's rate)",
+    TelemetryFieldBits = "telemetry.fields: bits beyond the last TelemetryField",
+    TelemetryRateTooHigh = "telemetry.rate_hz: above the position-loop rate (the record's rate)",
 
     // ---- test signals (`Controller::start_test`, the server's checks) ----
     FaultsLatched = "faults latched",

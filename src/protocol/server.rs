@@ -13,9 +13,10 @@
 use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use super::frame::{decode, Feed, FrameReader};
 use super::messages::*;
-use super::params::{self as paths, PathError, PARAM_COUNT};
+use super::params::PARAM_COUNT;
+use crate::params::leaves::{self, LeafError};
 use super::reason::Reason;
-use super::SCHEMA_HASH;
+use super::{PARAMS_SCHEMA_HASH, SCHEMA_HASH};
 use crate::controller::{ApplyError, Command, CommandError};
 use crate::params::{record, ControlParams, ParamError, ValidatedParams};
 use crate::telemetry::{Mode, Telemetry};
@@ -62,29 +63,10 @@ pub fn text(s: &str) -> Text {
     t
 }
 
-fn path_of(s: &str) -> Path {
-    let mut p = Path::new();
-    for c in s.chars() {
-        if p.push(c).is_err() {
-            break;
-        }
-    }
-    p
-}
-
-fn invalid(field: &str, reason: Reason) -> Error {
-    Error::InvalidParam { field: path_of(field), reason }
-}
-
-/// A validation refusal, the field named by its path (through the tree:
-/// the drive holds no table of paths).
+/// A validation refusal: the field by its leaf index (the host shows its
+/// path) and why.
 fn invalid_param(e: ParamError) -> Error {
-    Error::InvalidParam { field: leaf_path(e.leaf), reason: e.reason }
-}
-
-/// The path of leaf `leaf` (empty if there is none).
-fn leaf_path(leaf: u16) -> Path {
-    paths::name(usize::from(leaf)).map(|(path, _)| path).unwrap_or_default()
+    Error::InvalidParam { index: e.leaf, reason: e.reason }
 }
 
 fn stream_error(reason: Reason) -> Error {
@@ -154,11 +136,10 @@ impl Server {
             Request::Info => Ok(self.info(drive)),
             Request::Status => Ok(Self::status(drive)),
             Request::ParamCount => Ok(Reply::ParamCount { count: u16::try_from(PARAM_COUNT).unwrap_or(u16::MAX) }),
-            Request::ParamName { index } => Self::param_name(*index),
-            Request::ParamGet { path } => paths::get(&drive.params(), path)
-                .map(|value| Reply::Param { path: path.clone(), value })
-                .map_err(|_| Error::UnknownPath { path: path.clone() }),
-            Request::ParamSet { path, value } => Self::param_set(path, *value, drive),
+            Request::ParamGet { index } => leaves::get(&drive.params(), usize::from(*index))
+                .map(|value| Reply::Param { index: *index, value })
+                .ok_or(Error::UnknownParam { index: *index }),
+            Request::ParamSet { index, value } => Self::param_set(*index, *value, drive),
             Request::Save => Self::save(drive, store),
             Request::Load => self.load(drive, store),
             Request::Defaults => self.defaults(drive),
@@ -176,6 +157,7 @@ impl Server {
             firmware_version: text(self.identity.firmware_version),
             git_hash: text(self.identity.git_hash),
             schema_hash: SCHEMA_HASH,
+            params_schema_hash: PARAMS_SCHEMA_HASH,
             board: text(self.identity.board),
             mode: t.mode,
             faults: t.faults.bits(),
@@ -189,59 +171,31 @@ impl Server {
         Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.0, time_s: t.time_s, test_running: s.test_running })
     }
 
-    fn param_name(index: u16) -> Result<Reply, Error> {
-        match paths::name(usize::from(index)) {
-            Some((path, kind)) => Ok(Reply::ParamName { index, path, kind }),
-            None => {
-                // "control[65535]" is 14 characters: fits. Digits by hand,
-                // not `write!`: core::fmt would cost ≈ 2.5 KB of flash.
-                let mut digits = [0u8; 5];
-                let mut n = index;
-                let mut k = digits.len();
-                while k > 0 {
-                    k = k.wrapping_sub(1);
-                    if let Some(d) = digits.get_mut(k) {
-                        *d = b'0'.wrapping_add(n.checked_rem(10).unwrap_or(0) as u8);
-                    }
-                    n = n.checked_div(10).unwrap_or(0);
-                    if n == 0 {
-                        break;
-                    }
-                }
-                let mut path = path_of("control[");
-                for &d in digits.get(k..).unwrap_or(&[]) {
-                    let _ = path.push(char::from(d));
-                }
-                let _ = path.push(']');
-                Err(Error::UnknownPath { path })
-            }
-        }
-    }
-
     /// Staged on a copy, validated whole, then applied: nothing partial.
-    fn param_set<D: DriveAccess>(path: &Path, value: Value, drive: &mut D) -> Result<Reply, Error> {
+    fn param_set<D: DriveAccess>(index: u16, value: Value, drive: &mut D) -> Result<Reply, Error> {
         let present = drive.params();
         let mut staged = present;
-        if let Value::F32(v) = value {
-            if !v.is_finite() && paths::kind(path).is_ok() {
-                return Err(invalid(path, Reason::MustBeFinite));
+        let i = usize::from(index);
+        if let (Value::F32(v), Some(_)) = (value, leaves::leaf(i)) {
+            if !v.is_finite() {
+                return Err(Error::InvalidParam { index, reason: Reason::MustBeFinite });
             }
         }
-        paths::set(&mut staged, path, value).map_err(|e| match e {
-            PathError::Unknown => Error::UnknownPath { path: path.clone() },
-            PathError::WrongType(expected) => Error::WrongType { path: path.clone(), expected },
-            PathError::NoSuchVariant => invalid(path, Reason::NoSuchVariant),
+        leaves::set(&mut staged, i, value).map_err(|e| match e {
+            LeafError::Unknown => Error::UnknownParam { index },
+            LeafError::WrongType(expected) => Error::WrongType { index, expected },
+            LeafError::NoSuchVariant => Error::InvalidParam { index, reason: Reason::NoSuchVariant },
         })?;
         let validated = ValidatedParams::new(staged).map_err(invalid_param)?;
         if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
-            return Err(Error::NeedsBridgeOff { path: path.clone() });
+            return Err(Error::NeedsBridgeOff { index });
         }
         drive.apply_params(&validated).map_err(|e| match e {
-            ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { path: path.clone() },
+            ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { index },
             ApplyError::NoAnswer => Error::Busy,
         })?;
-        let value = paths::get(&staged, path).map_err(|_| Error::UnknownPath { path: path.clone() })?;
-        Ok(Reply::Param { path: path.clone(), value })
+        let value = leaves::get(&staged, i).ok_or(Error::UnknownParam { index })?;
+        Ok(Reply::Param { index, value })
     }
 
     fn save<D: DriveAccess, S: ParamStore>(drive: &D, store: &mut S) -> Result<Reply, Error> {
@@ -302,7 +256,7 @@ impl Server {
         let set = ValidatedParams::new(p).map_err(invalid_param)?;
         self.last_point = None;
         drive.apply_params(&set).map_err(|e| match e {
-            ApplyError::NeedsBridgeOff { leaf } => Error::NeedsBridgeOff { path: leaf_path(leaf) },
+            ApplyError::NeedsBridgeOff { leaf } => Error::NeedsBridgeOff { index: leaf },
             ApplyError::NoAnswer => Error::Busy,
         })
     }
@@ -387,14 +341,14 @@ impl Server {
 
     fn configure_telemetry<D: DriveAccess>(&mut self, fields: u32, rate_hz: u16, drive: &D) -> Result<Reply, Error> {
         if fields >> TelemetryField::COUNT != 0 {
-            return Err(invalid("telemetry.fields", Reason::TelemetryFieldBits));
+            return Err(Error::Telemetry { reason: Reason::TelemetryFieldBits });
         }
         // PWM rate over the divider: exact for whole rates (1 / 0.001f32 is
         // 999.99994, which refused a 1 kHz request).
         let r = drive.params().rates;
         let position_rate_hz = r.pwm_frequency_hz / r.position_loop_divider as f32;
         if f32::from(rate_hz) > position_rate_hz {
-            return Err(invalid("telemetry.rate_hz", Reason::TelemetryRateTooHigh));
+            return Err(Error::Telemetry { reason: Reason::TelemetryRateTooHigh });
         }
         self.telemetry_fields = fields;
         self.telemetry_rate_hz = rate_hz;

@@ -156,6 +156,7 @@ pub fn ask(srv: &mut Server, drive: &mut MockDrive, store: &mut MemStore, reques
     })
 }
 
-pub fn path(s: &str) -> Path {
-    Path::try_from(s).unwrap()
+/// The leaf index of `s`, as the host tool resolves it.
+pub fn idx(s: &str) -> u16 {
+    servo_core::protocol::params::index_of(s).unwrap() as u16
 }
