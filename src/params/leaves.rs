@@ -193,7 +193,7 @@ pub const fn index_at(offset: usize) -> u16 {
             return i;
         }
         rest = tail;
-        i += 1;
+        i = i.wrapping_add(1);
     }
     u16::MAX
 }
@@ -220,7 +220,7 @@ pub const fn path(index: usize) -> &'static str {
             return first;
         }
         rest = tail;
-        i += 1;
+        i = i.wrapping_add(1);
     }
     ""
 }
