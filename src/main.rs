@@ -223,7 +223,7 @@ async fn run() -> Option<Watchdog> {
             }
             Either4::Second(Err(e)) => {
                 // Overrun or a line error: the ring restarts on the next read.
-                warn!("USART2 receive: {}", e);
+                warn!("USART2 receive: {}", UsartFault::from(e));
                 reader = FrameReader::new();
                 continue;
             }
@@ -238,7 +238,7 @@ async fn run() -> Option<Watchdog> {
             Either4::Third(Err(e)) => {
                 can_state.bus_errors = can_state.bus_errors.wrapping_add(1);
                 if can_state.bus_errors.is_power_of_two() {
-                    warn!("FDCAN1 bus error {} ({=u32} so far)", e, can_state.bus_errors);
+                    warn!("FDCAN1 bus error {} ({=u32} so far)", CanFault::from(e), can_state.bus_errors);
                 }
                 continue;
             }
@@ -404,6 +404,64 @@ fn encode_frame(frame: &DriveFrame, buf: &mut [u8; proto::FRAME_MAX]) -> usize {
 async fn send_bytes(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, bytes: &[u8]) {
     if !bytes.is_empty() && tx.write(bytes).await.is_err() {
         warn!("USART2 transmit failed");
+    }
+}
+
+/// USART errors by name for the log. embassy-stm32 is built without its
+/// `defmt` feature: with it, each of its ≈ 40 panic and assertion sites
+/// carried a defmt log call (≈ 1 KB of the image); the two HAL errors
+/// the image logs are named here instead (the names are in `.defmt`, not
+/// in flash).
+#[derive(defmt::Format)]
+enum UsartFault {
+    Framing,
+    Noise,
+    Overrun,
+    Parity,
+    BufferTooLong,
+    Other,
+}
+
+impl From<embassy_stm32::usart::Error> for UsartFault {
+    fn from(e: embassy_stm32::usart::Error) -> Self {
+        use embassy_stm32::usart::Error as E;
+        #[allow(unreachable_patterns)]
+        match e {
+            E::Framing => Self::Framing,
+            E::Noise => Self::Noise,
+            E::Overrun => Self::Overrun,
+            E::Parity => Self::Parity,
+            E::BufferTooLong => Self::BufferTooLong,
+            _ => Self::Other,
+        }
+    }
+}
+
+/// FDCAN bus errors by name for the log (see [`UsartFault`]).
+#[derive(defmt::Format)]
+enum CanFault {
+    Stuff,
+    Form,
+    Acknowledge,
+    BitRecessive,
+    BitDominant,
+    Crc,
+    Other,
+}
+
+impl From<embassy_stm32::can::enums::BusError> for CanFault {
+    fn from(e: embassy_stm32::can::enums::BusError) -> Self {
+        use embassy_stm32::can::enums::BusError as E;
+        #[allow(unreachable_patterns)]
+        match e {
+            E::Stuff => Self::Stuff,
+            E::Form => Self::Form,
+            E::Acknowledge => Self::Acknowledge,
+            E::BitRecessive => Self::BitRecessive,
+            E::BitDominant => Self::BitDominant,
+            E::Crc => Self::Crc,
+            _ => Self::Other,
+        }
     }
 }
 
