@@ -25,6 +25,7 @@
 #![no_main]
 
 mod board;
+mod hal_log;
 mod masking;
 
 use board::active as hw;
@@ -38,6 +39,7 @@ use embassy_executor::Spawner;
 use embassy_futures::select::{select4, Either4};
 use embassy_stm32::pac;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use hal_log::{CanFault, UsartFault};
 use hw::comms::{self, FlashStore};
 use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
@@ -404,64 +406,6 @@ fn encode_frame(frame: &DriveFrame, buf: &mut [u8; proto::FRAME_MAX]) -> usize {
 async fn send_bytes(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, bytes: &[u8]) {
     if !bytes.is_empty() && tx.write(bytes).await.is_err() {
         warn!("USART2 transmit failed");
-    }
-}
-
-/// USART errors by name for the log. embassy-stm32 is built without its
-/// `defmt` feature: with it, each of its ≈ 40 panic and assertion sites
-/// carried a defmt log call (≈ 1 KB of the image); the two HAL errors
-/// the image logs are named here instead (the names are in `.defmt`, not
-/// in flash).
-#[derive(defmt::Format)]
-enum UsartFault {
-    Framing,
-    Noise,
-    Overrun,
-    Parity,
-    BufferTooLong,
-    Other,
-}
-
-impl From<embassy_stm32::usart::Error> for UsartFault {
-    fn from(e: embassy_stm32::usart::Error) -> Self {
-        use embassy_stm32::usart::Error as E;
-        #[allow(unreachable_patterns)]
-        match e {
-            E::Framing => Self::Framing,
-            E::Noise => Self::Noise,
-            E::Overrun => Self::Overrun,
-            E::Parity => Self::Parity,
-            E::BufferTooLong => Self::BufferTooLong,
-            _ => Self::Other,
-        }
-    }
-}
-
-/// FDCAN bus errors by name for the log (see [`UsartFault`]).
-#[derive(defmt::Format)]
-enum CanFault {
-    Stuff,
-    Form,
-    Acknowledge,
-    BitRecessive,
-    BitDominant,
-    Crc,
-    Other,
-}
-
-impl From<embassy_stm32::can::enums::BusError> for CanFault {
-    fn from(e: embassy_stm32::can::enums::BusError) -> Self {
-        use embassy_stm32::can::enums::BusError as E;
-        #[allow(unreachable_patterns)]
-        match e {
-            E::Stuff => Self::Stuff,
-            E::Form => Self::Form,
-            E::Acknowledge => Self::Acknowledge,
-            E::BitRecessive => Self::BitRecessive,
-            E::BitDominant => Self::BitDominant,
-            E::Crc => Self::Crc,
-            _ => Self::Other,
-        }
     }
 }
 
