@@ -25,6 +25,7 @@
 #![no_main]
 
 mod board;
+mod hal_log;
 mod masking;
 
 use board::active as hw;
@@ -38,6 +39,7 @@ use embassy_executor::Spawner;
 use embassy_futures::select::{select4, Either4};
 use embassy_stm32::pac;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use hal_log::{CanFault, UsartFault};
 use hw::comms::{self, FlashStore};
 use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
@@ -223,7 +225,7 @@ async fn run() -> Option<Watchdog> {
             }
             Either4::Second(Err(e)) => {
                 // Overrun or a line error: the ring restarts on the next read.
-                warn!("USART2 receive: {}", e);
+                warn!("USART2 receive: {}", UsartFault::from(e));
                 reader = FrameReader::new();
                 continue;
             }
@@ -238,7 +240,7 @@ async fn run() -> Option<Watchdog> {
             Either4::Third(Err(e)) => {
                 can_state.bus_errors = can_state.bus_errors.wrapping_add(1);
                 if can_state.bus_errors.is_power_of_two() {
-                    warn!("FDCAN1 bus error {} ({=u32} so far)", e, can_state.bus_errors);
+                    warn!("FDCAN1 bus error {} ({=u32} so far)", CanFault::from(e), can_state.bus_errors);
                 }
                 continue;
             }
@@ -369,7 +371,9 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
             v
         }
         Err(e) => {
-            warn!("parameters: image defaults (saved set invalid on this board: {=str})", e.field);
+            // The leaf by index: the image holds no parameter names
+            // (`drive param list` shows index and path).
+            warn!("parameters: image defaults (saved set invalid on this board: leaf {=u16}: {})", e.leaf, e.reason);
             board::VALID_PARAMS
         }
     }
@@ -478,11 +482,11 @@ impl CanStream {
             Some(DriveFrame::Reply { reply: proto::Reply::Error(e), .. }) => {
                 self.refused = self.refused.wrapping_add(1);
                 if self.refused.is_power_of_two() {
-                    let why = match &e {
-                        proto::Error::Stream { reason } => reason.as_str(),
-                        _ => "stop refused",
-                    };
-                    warn!("CAN setpoint refused ({=u32} so far): {=str}", self.refused, why);
+                    // The reason by its code's name (defmt: no text in flash).
+                    match &e {
+                        proto::Error::Stream { reason } => warn!("CAN setpoint refused ({=u32} so far): {}", self.refused, reason),
+                        _ => warn!("CAN stop refused ({=u32} so far)", self.refused),
+                    }
                 }
             }
             _ => self.accepted = self.accepted.wrapping_add(1),

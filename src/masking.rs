@@ -44,6 +44,9 @@ critical_section::set_impl!(BasepriCriticalSection);
 // takes no critical section). Acquire returns the previous BASEPRI and
 // release restores it, so nesting works.
 unsafe impl critical_section::Impl for BasepriCriticalSection {
+    // Out of line: ≈ 13 critical sections in the image (embassy's mutexes,
+    // wakers, the time queue, defmt-rtt); inlined, each carried its own copy.
+    #[inline(never)]
     unsafe fn acquire() -> critical_section::RawRestoreState {
         let previous = basepri::read();
         basepri_max::write(MASK_BASEPRI);
@@ -52,6 +55,7 @@ unsafe impl critical_section::Impl for BasepriCriticalSection {
         previous
     }
 
+    #[inline(never)]
     unsafe fn release(previous: critical_section::RawRestoreState) {
         compiler_fence(Ordering::SeqCst);
         // SAFETY: restores what `acquire` found (0 outside any section).

@@ -26,7 +26,7 @@ fn validate_names_the_bad_field() -> Outcome {
     p.rates.pwm_frequency_hz = f32::NAN;
     let r = p.validate();
     check!(
-        matches!(r, Err(e) if e.field == "control.rates.pwm_frequency_hz"),
+        matches!(r, Err(e) if e.field() == "control.rates.pwm_frequency_hz"),
         "{:?}",
         r
     );
@@ -35,7 +35,7 @@ fn validate_names_the_bad_field() -> Outcome {
     p.motor.phase_resistance_ohm = -0.1;
     let r = p.validate();
     check!(
-        matches!(r, Err(e) if e.field == "control.motor.phase_resistance_ohm"),
+        matches!(r, Err(e) if e.field() == "control.motor.phase_resistance_ohm"),
         "{:?}",
         r
     );
@@ -44,7 +44,7 @@ fn validate_names_the_bad_field() -> Outcome {
     p.rates.position_loop_divider = p.rates.speed_loop_divider + 1;
     let r = p.validate();
     check!(
-        matches!(r, Err(e) if e.field == "control.rates.position_loop_divider"),
+        matches!(r, Err(e) if e.field() == "control.rates.position_loop_divider"),
         "{:?}",
         r
     );

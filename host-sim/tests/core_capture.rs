@@ -221,7 +221,7 @@ fn bad_configurations_are_refused_with_a_reason() {
     let rig = RigConfig::nominal().unwrap();
     let mut c = Controller::try_new(rig.control).unwrap();
     let good = config(&[Signal::CurrentQ], 1, 1000, 100, CaptureTrigger::Command);
-    assert_eq!(c.capture_configure(&good), Err("no capture store attached"));
+    assert_eq!(c.capture_configure(&good).map_err(|r| r.text()), Err("no capture store attached"));
     c.attach_capture_store(store());
     let cases = [
         (config(&[], 1, 1000, 0, CaptureTrigger::Command), "no signals"),
@@ -235,7 +235,7 @@ fn bad_configurations_are_refused_with_a_reason() {
         (config(&[Signal::CurrentQ], 1, 1000, 1000, CaptureTrigger::Command), "pre-trigger not below samples"),
     ];
     for (cfg, reason) in cases {
-        assert_eq!(c.capture_configure(&cfg), Err(reason), "{cfg:?}");
+        assert_eq!(c.capture_configure(&cfg).map_err(|r| r.text()), Err(reason), "{cfg:?}");
         assert_eq!(c.capture_status().state, CaptureState::Idle);
     }
     // The largest ones fit: 4 × 1024, 1 × 4096.
@@ -243,8 +243,8 @@ fn bad_configurations_are_refused_with_a_reason() {
     assert_eq!(c.capture_configure(&four), Ok(()));
     assert_eq!(c.capture_configure(&config(&[Signal::BusVoltage], 65535, 4096, 0, CaptureTrigger::Fault)), Ok(()));
     let mut out = [0.0f32; 4];
-    assert_eq!(c.capture_read(0, 0, &mut out), Err("capture not done"));
+    assert_eq!(c.capture_read(0, 0, &mut out).map_err(|r| r.text()), Err("capture not done"));
     // Not armed: no trigger.
     let mut idle = Controller::try_new(rig.control).unwrap();
-    assert_eq!(idle.capture_trigger(), Err("capture not armed"));
+    assert_eq!(idle.capture_trigger().map_err(|r| r.text()), Err("capture not armed"));
 }

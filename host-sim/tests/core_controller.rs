@@ -17,7 +17,7 @@ fn invalid_params_are_named_and_never_enable() {
     let mut p = ControlParams::DEFAULT;
     p.speed_pi.kp = -1.0;
     let e = Controller::try_new(p).unwrap_err();
-    assert_eq!(e.field, "control.speed_pi.kp");
+    assert_eq!(e.field(), "control.speed_pi.kp");
     let mut c = Controller::new(p.commissioned());
     assert!(c.faults().contains(FaultSet::INVALID_PARAMS));
     assert!(matches!(c.command(Command::Enable), Err(CommandError::Faulted(_))));
@@ -38,7 +38,7 @@ fn each_bad_field_is_named() {
     for (field, spoil) in cases {
         let mut p = ControlParams::DEFAULT;
         spoil(&mut p);
-        assert_eq!(p.validate().unwrap_err().field, field);
+        assert_eq!(p.validate().unwrap_err().field(), field);
     }
 }
 

@@ -42,7 +42,7 @@ fn structure_changes_need_the_bridge_off_and_forget_commutation() {
     p.motor.pole_pairs = 5;
     let v = ValidatedParams::new(p).unwrap();
     let before = *cl.controller.params();
-    assert_eq!(cl.controller.apply_params(&v), Err(ApplyError::NeedsBridgeOff { field: "control.motor" }));
+    assert_eq!(cl.controller.apply_params(&v), Err(ApplyError::NeedsBridgeOff { leaf: servo_core::leaf!(motor.pole_pairs) }));
     assert_eq!(*cl.controller.params(), before, "nothing applied");
     // A live change with the bridge on is applied.
     let mut live = before;

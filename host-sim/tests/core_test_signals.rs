@@ -334,7 +334,7 @@ fn tests_are_refused_when_not_running_or_beyond_their_bounds() {
     let rig = RigConfig::nominal().unwrap();
     let mut off = Controller::try_new(rig.control.commissioned()).unwrap();
     let step = TestSignal::CurrentStep { axis_q: true, amplitude_a: 1.0, duration_s: 0.01 };
-    assert_eq!(off.start_test(step), Err("not running (enable first)"));
+    assert_eq!(off.start_test(step).map_err(|r| r.text()), Err("not running (enable first)"));
     assert!(!off.test_running());
 
     let mut cl = holding();
@@ -355,18 +355,18 @@ fn tests_are_refused_when_not_running_or_beyond_their_bounds() {
         (chirp(ChirpTarget::Current, 0.0, 100.0, 1.0), "chirp frequency not positive"),
     ];
     for (t, reason) in refusals {
-        assert_eq!(c.start_test(t), Err(reason), "{t:?}");
+        assert_eq!(c.start_test(t).map_err(|r| r.text()), Err(reason), "{t:?}");
         assert!(!c.test_running());
     }
     // Just below the Nyquist frequencies is accepted.
     c.start_test(chirp(ChirpTarget::Current, 10.0, 9_999.0, 0.5)).unwrap();
     // One test at a time, and no moves while it runs.
-    assert_eq!(c.start_test(step), Err("a test is already running"));
+    assert_eq!(c.start_test(step).map_err(|r| r.text()), Err("a test is already running"));
     assert_eq!(c.command(Command::MoveTo { position_m: 0.3 }), Err(CommandError::Busy));
     c.stop_test();
     assert!(!c.test_running());
     c.command(Command::MoveTo { position_m: 0.26 }).unwrap();
-    assert_eq!(c.start_test(step), Err("a move or stream is in progress"));
+    assert_eq!(c.start_test(step).map_err(|r| r.text()), Err("a move or stream is in progress"));
 }
 
 #[test]

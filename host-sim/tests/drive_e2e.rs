@@ -118,14 +118,14 @@ fn bad_input_gets_error_replies() {
     assert!(e.contains("no parameter `control.speed_pi.nope`"), "{e}");
     let e = tool::param_set(&mut c, "speed_pi.kp", "NaN").unwrap_err().to_string();
     assert!(e.contains("finite"), "{e}");
-    let r = c.request(Request::ParamSet { path: "control.speed_pi.kp".try_into().unwrap(), value: Value::Bool(true) }).unwrap();
+    let r = c.request(Request::ParamSet { index: servo_core::leaf!(speed_pi.kp), value: Value::Bool(true) }).unwrap();
     assert!(matches!(r, Reply::Error(Error::WrongType { .. })), "{r:?}");
     // A NaN stream point is refused with its seq.
     enabled(&mut c);
     let seq = c.send(Request::Stream(StreamPoint { position_m: f32::NAN, velocity_m_s: 0.0, force_n: None })).unwrap();
     c.poll(Duration::from_millis(200)).unwrap();
     assert!(
-        c.unsolicited.iter().any(|u| u.seq == seq && matches!(&u.error, Reply::Error(Error::Stream { reason }) if reason.contains("not finite"))),
+        c.unsolicited.iter().any(|u| u.seq == seq && matches!(&u.error, Reply::Error(Error::Stream { reason }) if reason.text().contains("not finite"))),
         "{:?}",
         c.unsolicited
     );

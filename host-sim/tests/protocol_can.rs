@@ -197,5 +197,5 @@ fn leg_index_is_a_validated_parameter() {
     assert!(ValidatedParams::new(p).is_ok());
     p.stream.leg_index = 6;
     let e = ValidatedParams::new(p).unwrap_err();
-    assert_eq!(e.field, "control.stream.leg_index");
+    assert_eq!(e.field(), "control.stream.leg_index");
 }

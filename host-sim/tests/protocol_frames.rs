@@ -26,7 +26,7 @@ fn largest_reply_fits_and_round_trips() {
 
 #[test]
 fn a_flipped_bit_is_a_crc_error_not_a_message() {
-    let req = RequestFrame { seq: 7, request: Request::ParamGet { path: "control.speed_pi.kp".try_into().unwrap() } };
+    let req = RequestFrame { seq: 7, request: Request::ParamGet { index: servo_core::leaf!(speed_pi.kp) } };
     let mut buf = [0u8; FRAME_MAX];
     let frame = encode(&req, &mut buf).unwrap().to_vec();
     let mut crc_errors = 0;
@@ -42,4 +42,17 @@ fn a_flipped_bit_is_a_crc_error_not_a_message() {
         }
     }
     assert!(crc_errors > 0);
+}
+
+#[test]
+fn a_refusal_reason_crosses_as_a_code_and_reads_as_its_text() {
+    use servo_core::protocol::Reason;
+    let frame = DriveFrame::Reply { seq: 3, reply: Reply::Error(Error::Stream { reason: Reason::StreamJump }) };
+    let mut buf = [0u8; FRAME_MAX];
+    let bytes = encode(&frame, &mut buf).unwrap().to_vec();
+    let mut body = bytes[..bytes.len() - 1].to_vec();
+    let back: DriveFrame = decode(&mut body).unwrap();
+    assert_eq!(back, frame);
+    let DriveFrame::Reply { reply: Reply::Error(Error::Stream { reason }), .. } = back else { panic!() };
+    assert_eq!(reason.to_string(), "jump beyond control.trajectory.max_velocity_m_s since the last point");
 }

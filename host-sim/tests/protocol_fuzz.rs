@@ -13,7 +13,7 @@ use proptest::prelude::*;
 use protocol_support::*;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use servo_core::params::ValidatedParams;
+use servo_core::params::{leaves, ValidatedParams};
 use servo_core::protocol::params as paths;
 use servo_core::protocol::*;
 use servo_core::{Command, CommandError, Mode};
@@ -36,16 +36,16 @@ fn random_f32(rng: &mut ChaCha8Rng, around: f32) -> f32 {
 }
 
 fn random_request(rng: &mut ChaCha8Rng, d: &MockDrive) -> Request {
-    let leaf = |rng: &mut ChaCha8Rng| paths::name(rng.random_range(0..paths::PARAM_COUNT)).unwrap().0;
+    let leaf = |rng: &mut ChaCha8Rng| rng.random_range(0..paths::PARAM_COUNT) as u16;
     match rng.random_range(0..20) {
         0 => Request::Info,
         1 => Request::Status,
         2 => Request::ParamCount,
-        3 => Request::ParamName { index: rng.random_range(0..200) },
-        4 => Request::ParamGet { path: leaf(rng) },
+        3 => Request::ParamGet { index: rng.random_range(0..200) },
+        4 => Request::ParamGet { index: leaf(rng) },
         5..=8 => {
-            let path = if rng.random_range(0..10) == 0 { path("control.nowhere") } else { leaf(rng) };
-            let value = match paths::get(&d.params, &path) {
+            let index = if rng.random_range(0..10) == 0 { rng.random_range(paths::PARAM_COUNT as u16..=u16::MAX) } else { leaf(rng) };
+            let value = match leaves::get(&d.params, usize::from(index)).ok_or(()) {
                 Ok(Value::F32(v)) if rng.random_range(0..8) > 0 => Value::F32(random_f32(rng, v)),
                 Ok(Value::U32(v)) if rng.random_range(0..8) > 0 => Value::U32(v.saturating_add(rng.random_range(0..3)).saturating_sub(1)),
                 Ok(Value::I32(v)) if rng.random_range(0..8) > 0 => Value::I32(if rng.random() { -v } else { v }),
@@ -53,7 +53,7 @@ fn random_request(rng: &mut ChaCha8Rng, d: &MockDrive) -> Request {
                 Ok(Value::Variant(_)) => Value::Variant(rng.random_range(0..3)),
                 _ => Value::U32(rng.next_u32()),
             };
-            Request::ParamSet { path, value }
+            Request::ParamSet { index, value }
         }
         9 => Request::Save,
         10 => Request::Load,
@@ -146,12 +146,12 @@ fn check_frame(srv: &mut Server, d: &mut MockDrive, s: &mut MemStore, bytes: &[u
     // The drive's parameters are always a valid, finite set.
     assert!(ValidatedParams::new(d.params).is_ok());
     match &req.request {
-        Request::ParamSet { path, value } => {
+        Request::ParamSet { index, value } => {
             if refused {
                 assert_eq!((d.params, d.applied), (params, applied), "{req:?} → {reply:?}: nothing applied");
             } else {
                 let mut expected = params;
-                paths::set(&mut expected, path, *value).unwrap();
+                leaves::set(&mut expected, usize::from(*index), *value).unwrap();
                 assert_eq!(d.params, expected, "{req:?}: exactly the one leaf");
                 assert_eq!(d.applied, applied + 1);
                 APPLIED.fetch_add(1, Ordering::Relaxed);

@@ -26,15 +26,14 @@ fn every_leaf_has_a_path_a_type_and_a_value() {
     assert!(count > 100, "{count} leaves");
     let mut seen = std::collections::HashSet::new();
     for index in 0..count {
-        let Some(Reply::ParamName { index: i, path, kind }) = ask(&mut srv, &mut d, &mut s, Request::ParamName { index }) else {
-            panic!("index {index}")
-        };
-        assert_eq!(i, index);
+        // The host names the leaf (its own copy of the tree), the drive
+        // answers by index with a value of that leaf's type.
+        let (path, kind) = paths::name(usize::from(index)).unwrap();
         assert!(path.starts_with("control."), "{path}");
         assert!(seen.insert(path.clone()), "{path} twice");
-        let Some(Reply::Param { value, .. }) = ask(&mut srv, &mut d, &mut s, Request::ParamGet { path: path.clone() }) else {
-            panic!("{path}")
-        };
+        assert_eq!(paths::index_of(&path), Some(usize::from(index)), "{path}");
+        let Some(Reply::Param { index: i, value }) = ask(&mut srv, &mut d, &mut s, Request::ParamGet { index }) else { panic!("{path}") };
+        assert_eq!(i, index);
         let k = match value {
             Value::F32(_) => ValueKind::F32,
             Value::U32(_) => ValueKind::U32,
@@ -43,6 +42,7 @@ fn every_leaf_has_a_path_a_type_and_a_value() {
             Value::Variant(_) => ValueKind::Variant,
         };
         assert_eq!(k, kind, "{path}");
+        assert_eq!(paths::get(&d.params, &path), Ok(value), "{path}");
     }
     for p in ["control.speed_pi.kp", "control.homing.method", "control.torque_filter_hz", "control.drive_train.friction_feedforward_speed_rad_s"] {
         assert!(seen.contains(p), "{p}");
@@ -50,16 +50,10 @@ fn every_leaf_has_a_path_a_type_and_a_value() {
     assert_eq!(paths::get(&ControlParams::DEFAULT, "control.homing.method"), Ok(Value::Variant(0)));
     assert_eq!(paths::get(&ControlParams::DEFAULT, "control.motor.pole_pairs"), Ok(Value::U32(4)));
     assert_eq!(paths::get(&ControlParams::DEFAULT, "control.speed_pi.kp"), Ok(Value::F32(ControlParams::DEFAULT.speed_pi.kp)));
-    let e = param_error(ask(&mut srv, &mut d, &mut s, Request::ParamName { index: count }));
-    let Error::UnknownPath { path } = e else { panic!("{e:?}") };
-    assert_eq!(path.as_str(), format!("control[{count}]"));
-    for index in [0u16, 7, 10, 65535] {
-        if usize::from(index) < usize::from(count) {
-            continue;
-        }
-        let e = param_error(ask(&mut srv, &mut d, &mut s, Request::ParamName { index }));
-        let Error::UnknownPath { path } = e else { panic!("{e:?}") };
-        assert_eq!(path.as_str(), format!("control[{index}]"));
+    // An index the drive has not: refused by the drive (never trusting the host).
+    for index in [count, count + 1, 65535] {
+        let e = param_error(ask(&mut srv, &mut d, &mut s, Request::ParamGet { index }));
+        assert_eq!(e, Error::UnknownParam { index });
     }
 }
 
@@ -94,45 +88,47 @@ fn the_live_split_is_the_same_by_path_and_by_comparison() {
 fn param_set_validates_the_whole_set_and_applies_nothing_on_refusal() {
     let mut srv = server();
     let (mut d, mut s) = (MockDrive::running(), MemStore::default());
-    let kp = path("control.speed_pi.kp");
+    let kp = idx("control.speed_pi.kp");
     // A live gain, bridge on: applied, echoed as applied.
-    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { path: kp.clone(), value: Value::F32(0.9) });
-    assert_eq!(r, Some(Reply::Param { path: kp.clone(), value: Value::F32(0.9) }));
+    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { index: kp, value: Value::F32(0.9) });
+    assert_eq!(r, Some(Reply::Param { index: kp, value: Value::F32(0.9) }));
     assert_eq!(d.params.speed_pi.kp, 0.9);
     let before = d.params;
     let applied = d.applied;
+    let count = paths::PARAM_COUNT as u16;
     let cases: Vec<(Request, &str)> = vec![
-        (Request::ParamSet { path: path("control.speed_pi.kq"), value: Value::F32(1.0) }, "unknown leaf"),
-        (Request::ParamSet { path: path("control.speed_pi"), value: Value::F32(1.0) }, "a group"),
-        (Request::ParamSet { path: path("speed_pi.kp"), value: Value::F32(1.0) }, "no prefix"),
-        (Request::ParamSet { path: path("control.speed_pi.kp.x"), value: Value::F32(1.0) }, "too long"),
-        (Request::ParamSet { path: kp.clone(), value: Value::U32(1) }, "wrong type"),
-        (Request::ParamSet { path: kp.clone(), value: Value::F32(f32::NAN) }, "NaN"),
-        (Request::ParamSet { path: kp.clone(), value: Value::F32(-1.0) }, "negative gain"),
-        (Request::ParamSet { path: path("control.limits.stroke_min_m"), value: Value::F32(0.6) }, "stroke crossed"),
-        (Request::ParamSet { path: path("control.motor.pole_pairs"), value: Value::U32(5) }, "bridge on"),
-        (Request::ParamSet { path: path("control.homing.method"), value: Value::Variant(7) }, "no variant"),
+        (Request::ParamSet { index: count, value: Value::F32(1.0) }, "unknown index"),
+        (Request::ParamSet { index: u16::MAX, value: Value::F32(1.0) }, "unknown index"),
+        (Request::ParamSet { index: kp, value: Value::U32(1) }, "wrong type"),
+        (Request::ParamSet { index: kp, value: Value::F32(f32::NAN) }, "NaN"),
+        (Request::ParamSet { index: kp, value: Value::F32(-1.0) }, "negative gain"),
+        (Request::ParamSet { index: idx("control.limits.stroke_min_m"), value: Value::F32(0.6) }, "stroke crossed"),
+        (Request::ParamSet { index: idx("control.motor.pole_pairs"), value: Value::U32(5) }, "bridge on"),
+        (Request::ParamSet { index: idx("control.homing.method"), value: Value::Variant(7) }, "no variant"),
     ];
     for (req, what) in cases {
         let e = param_error(ask(&mut srv, &mut d, &mut s, req));
         println!("{what}: {e:?}");
         match what {
-            "unknown leaf" | "a group" | "no prefix" | "too long" => assert!(matches!(e, Error::UnknownPath { .. }), "{what}"),
-            "wrong type" => assert_eq!(e, Error::WrongType { path: kp.clone(), expected: ValueKind::F32 }),
-            "NaN" | "negative gain" => assert!(matches!(&e, Error::InvalidParam { field, .. } if field == "control.speed_pi.kp"), "{what}: {e:?}"),
-            "stroke crossed" => assert!(matches!(&e, Error::InvalidParam { field, .. } if field == "control.limits.stroke_max_m"), "{e:?}"),
-            "bridge on" => assert_eq!(e, Error::NeedsBridgeOff { path: path("control.motor.pole_pairs") }),
-            _ => assert!(matches!(e, Error::InvalidParam { .. }), "{what}"),
+            "unknown index" => assert!(matches!(e, Error::UnknownParam { .. }), "{what}"),
+            "wrong type" => assert_eq!(e, Error::WrongType { index: kp, expected: ValueKind::F32 }),
+            "NaN" | "negative gain" => assert!(matches!(&e, Error::InvalidParam { index, .. } if *index == kp), "{what}: {e:?}"),
+            "stroke crossed" => {
+                assert!(matches!(&e, Error::InvalidParam { index, .. } if *index == idx("control.limits.stroke_max_m")), "{e:?}")
+            }
+            "bridge on" => assert_eq!(e, Error::NeedsBridgeOff { index: idx("control.motor.pole_pairs") }),
+            _ => assert!(matches!(e, Error::InvalidParam { reason: Reason::NoSuchVariant, .. }), "{what}"),
         }
         assert_eq!(d.params, before, "{what}: nothing applied");
         assert_eq!(d.applied, applied, "{what}");
     }
     // The same structural change with the bridge off is applied.
     d.mode = Mode::Disabled;
-    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { path: path("control.motor.pole_pairs"), value: Value::U32(5) });
-    assert_eq!(r, Some(Reply::Param { path: path("control.motor.pole_pairs"), value: Value::U32(5) }));
+    let pole_pairs = idx("control.motor.pole_pairs");
+    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { index: pole_pairs, value: Value::U32(5) });
+    assert_eq!(r, Some(Reply::Param { index: pole_pairs, value: Value::U32(5) }));
     assert_eq!(d.params.motor.pole_pairs, 5);
-    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { path: path("control.homing.method"), value: Value::Variant(1) });
+    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { index: idx("control.homing.method"), value: Value::Variant(1) });
     assert!(matches!(r, Some(Reply::Param { .. })));
     assert_eq!(d.params.homing.method, servo_core::params::HomingMethod::Switch);
 }
@@ -170,7 +166,7 @@ fn records_round_trip_and_every_corruption_is_named() {
     let mut bad = ControlParams::DEFAULT;
     bad.current_pi.kp = -1.0;
     let rec_bad = record::encode(&bad, &mut buf).unwrap().to_vec();
-    assert!(matches!(record::decode(&rec_bad), Err(RecordError::Invalid(e)) if e.field == "control.current_pi.kp"));
+    assert!(matches!(record::decode(&rec_bad), Err(RecordError::Invalid(e)) if e.field() == "control.current_pi.kp"));
 }
 
 #[test]
@@ -263,9 +259,9 @@ fn telemetry_config_and_frames() {
     let mut srv = server();
     let (mut d, mut s) = (MockDrive::new(), MemStore::default());
     let e = param_error(ask(&mut srv, &mut d, &mut s, Request::Telemetry { fields: 1 << 20, rate_hz: 100 }));
-    assert!(matches!(e, Error::InvalidParam { .. }), "{e:?}");
+    assert_eq!(e, Error::Telemetry { reason: Reason::TelemetryFieldBits });
     let e = param_error(ask(&mut srv, &mut d, &mut s, Request::Telemetry { fields: 1, rate_hz: 5000 }));
-    assert!(matches!(e, Error::InvalidParam { .. }), "{e:?}");
+    assert_eq!(e, Error::Telemetry { reason: Reason::TelemetryRateTooHigh });
     assert_eq!(srv.telemetry_rate_hz(), 0);
     let fields = (1 << TelemetryField::MotorPosition as u32) | (1 << TelemetryField::Faults as u32);
     assert_eq!(ask(&mut srv, &mut d, &mut s, Request::Telemetry { fields, rate_hz: 200 }), Some(Reply::Ok));

@@ -11,16 +11,11 @@ use core::cell::{Cell, RefCell};
 
 use servo_core::controller::ApplyError;
 use servo_core::params::ValidatedParams;
-use servo_core::protocol::server::text;
-use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, TestSignal, Text, CAPTURE_CHUNK_MAX};
+use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, Reason, TestSignal, CAPTURE_CHUNK_MAX};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Readiness};
 
 use super::link::{BulkIn, BulkOut, CaptureOp, Reply, CAPTURE};
 use super::ServoBoard;
-
-/// `ApplyError` field named when the interrupt did not answer (the link's
-/// only way to say so through `DriveAccess::apply_params`).
-pub const NO_ANSWER_FIELD: &str = "(link: the PWM interrupt did not answer)";
 
 /// Thread mode's copy of the controller's parameters, kept across
 /// requests. Only thread mode changes the set (`apply_params`, which updates
@@ -115,11 +110,11 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
                 }
                 r
             }
-            Err(_) => Err(ApplyError::NeedsBridgeOff { field: NO_ANSWER_FIELD }),
+            Err(_) => Err(ApplyError::NoAnswer),
         }
     }
 
-    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Reason> {
         // `Read` in thread mode, straight from the store: the layout of the
         // done capture comes from the interrupt (one request), the values
         // from `CAPTURE`, which the interrupt no longer writes once the
@@ -127,45 +122,45 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
         // thread sends). No per-chunk decoding in the interrupt.
         let op = match request {
             CaptureRequest::Read { signal, start, count } => return self.read_capture(*signal, *start, *count),
-            r => CaptureOp::of(r).ok_or_else(|| text("capture: more signals than the board records"))?,
+            r => CaptureOp::of(r).ok_or(Reason::MoreSignalsThanTheBoardRecords)?,
         };
         match self.bulk(BulkIn::Capture(op))? {
             BulkOut::Done => Ok(CaptureReply::Ok),
             BulkOut::CaptureStatus(s) => Ok(CaptureReply::Status(s)),
-            _ => Err(text(NO_ANSWER_FIELD)),
+            _ => Err(Reason::NoAnswer),
         }
     }
 
-    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Text> {
+    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Reason> {
         match self.bulk(BulkIn::Test(*signal))? {
             BulkOut::Done => Ok(()),
-            _ => Err(text(NO_ANSWER_FIELD)),
+            _ => Err(Reason::NoAnswer),
         }
     }
 }
 
 impl<B: ServoBoard> BoardDrive<'_, B> {
     /// One request through the bulk slots; a refusal's reason, or the link's
-    /// failure, as the error text.
+    /// failure, as the error.
     #[inline(never)]
-    fn bulk(&mut self, payload: BulkIn) -> Result<BulkOut, Text> {
+    fn bulk(&mut self, payload: BulkIn) -> Result<BulkOut, Reason> {
         match self.board.get_mut().bulk(payload) {
-            Ok(BulkOut::Refused(why)) => Err(why.text()),
+            Ok(BulkOut::Refused(why)) => Err(why),
             Ok(out) => Ok(out),
-            Err(_) => Err(text(NO_ANSWER_FIELD)),
+            Err(_) => Err(Reason::NoAnswer),
         }
     }
 
     #[inline(never)]
-    fn read_capture(&mut self, signal: u8, start: u16, count: u8) -> Result<CaptureReply, Text> {
+    fn read_capture(&mut self, signal: u8, start: u16, count: u8) -> Result<CaptureReply, Reason> {
         let BulkOut::CaptureLayout(layout) = self.bulk(BulkIn::Capture(CaptureOp::Layout))? else {
-            return Err(text(NO_ANSWER_FIELD));
+            return Err(Reason::NoAnswer);
         };
         let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
         let want = usize::from(count).min(CAPTURE_CHUNK_MAX);
         let out = buf.get_mut(..want).unwrap_or(&mut []);
-        let n = CAPTURE.read(&layout, signal, start, out).map_err(text)?;
-        let values = servo_core::protocol::heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| text("capture chunk too long"))?;
+        let n = CAPTURE.read(&layout, signal, start, out)?;
+        let values = servo_core::protocol::heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| Reason::ChunkTooLong)?;
         Ok(CaptureReply::Data { signal, start, values })
     }
 }

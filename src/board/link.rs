@@ -26,7 +26,7 @@ use servo_core::protocol::drive::on_controller;
 use servo_core::protocol::CaptureReply;
 use servo_core::capture::{CaptureLayout, CaptureStore};
 use servo_core::params::ValidatedParams;
-use servo_core::protocol::{CaptureRequest, CaptureStatus, Signal, TestSignal, Text, CAPTURE_SIGNALS_MAX, TEXT_MAX};
+use servo_core::protocol::{CaptureRequest, CaptureStatus, Reason, Signal, TestSignal, CAPTURE_SIGNALS_MAX};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
 
 use super::BoardStatus;
@@ -171,32 +171,8 @@ pub enum BulkOut {
     Done,
     CaptureStatus(CaptureStatus),
     CaptureLayout(CaptureLayout),
-    /// Refused, with the reason.
-    Refused(ReplyText),
-}
-
-/// A reply text in a `Copy` form.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ReplyText {
-    len: u8,
-    bytes: [u8; TEXT_MAX],
-}
-
-impl ReplyText {
-    pub fn of(t: &Text) -> Self {
-        let mut bytes = [0u8; TEXT_MAX];
-        let src = t.as_bytes();
-        let n = src.len().min(TEXT_MAX);
-        if let (Some(d), Some(s)) = (bytes.get_mut(..n), src.get(..n)) {
-            d.copy_from_slice(s);
-        }
-        Self { len: n as u8, bytes }
-    }
-
-    pub fn text(&self) -> Text {
-        let s = self.bytes.get(..usize::from(self.len)).and_then(|b| core::str::from_utf8(b).ok()).unwrap_or("");
-        servo_core::protocol::server::text(s)
-    }
+    /// Refused, with the reason (a code: one byte across the slot).
+    Refused(Reason),
 }
 
 /// A request or reply with the caller's sequence number.
@@ -400,16 +376,16 @@ impl IsrLink {
             (Request::ApplyParams, Some(BulkIn::Params(p))) => return Reply::Applied(c.apply_params(&p)),
             (Request::Bulk, Some(BulkIn::Test(t))) => match on_controller::test_signal(c, &t) {
                 Ok(()) => BulkOut::Done,
-                Err(e) => BulkOut::Refused(ReplyText::of(&e)),
+                Err(e) => BulkOut::Refused(e),
             },
             (Request::Bulk, Some(BulkIn::Capture(CaptureOp::Layout))) => match c.capture_layout() {
                 Ok(l) => BulkOut::CaptureLayout(l),
-                Err(e) => BulkOut::Refused(ReplyText::of(&servo_core::protocol::server::text(e))),
+                Err(e) => BulkOut::Refused(e),
             },
             (Request::Bulk, Some(BulkIn::Capture(op))) => match op.request().map(|r| on_controller::capture(c, &r)) {
                 Some(Ok(CaptureReply::Status(s))) => BulkOut::CaptureStatus(s),
                 Some(Ok(_)) => BulkOut::Done,
-                Some(Err(e)) => BulkOut::Refused(ReplyText::of(&e)),
+                Some(Err(e)) => BulkOut::Refused(e),
                 None => return Reply::Refused,
             },
             _ => return Reply::Refused,

@@ -46,7 +46,7 @@ pub const VALID_PARAMS: servo_core::params::ValidatedParams =
         Ok(v) => v,
         // A const panic takes one `&str`: the field's name (its rule is in
         // `ControlParams::validate`, and host-sim's `--params` prints both).
-        Err(e) => panic!("{}", e.field),
+        Err(e) => panic!("{}", e.field()),
     };
 
 /// Brings the board up for [`VALID_PARAMS`], logging what the board's

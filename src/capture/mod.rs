@@ -31,6 +31,7 @@ use core::sync::atomic::{AtomicI16, Ordering};
 
 use crate::params::ControlParams;
 use crate::protocol::{CaptureConfig, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
+use crate::protocol::Reason;
 
 /// Largest code a finite value is stored as (the full scale).
 pub const FULL_SCALE_CODE: f32 = 32_767.0;
@@ -169,28 +170,28 @@ impl Capture {
     }
 
     /// Checks `c` and arms the capture; nothing changes on refusal.
-    pub fn configure(&mut self, c: &CaptureConfig, p: &ControlParams) -> Result<(), &'static str> {
+    pub fn configure(&mut self, c: &CaptureConfig, p: &ControlParams) -> Result<(), Reason> {
         if self.store.is_none() {
-            return Err("no capture store attached");
+            return Err(Reason::NoCaptureStore);
         }
         let n = c.signals.len();
         if n == 0 {
-            return Err("no signals");
+            return Err(Reason::NoSignals);
         }
         if n > CAPTURE_SIGNALS_MAX {
-            return Err("more than 4 signals");
+            return Err(Reason::TooManySignals);
         }
         if c.decimation == 0 {
-            return Err("decimation 0");
+            return Err(Reason::DecimationZero);
         }
         if c.samples < 2 {
-            return Err("fewer than 2 samples");
+            return Err(Reason::TooFewSamples);
         }
         if usize::from(c.samples).saturating_mul(n) > CAPTURE_STORE_CELLS {
-            return Err("samples x signals beyond the 4096-value buffer");
+            return Err(Reason::CaptureBufferTooSmall);
         }
         if c.pre_trigger >= c.samples {
-            return Err("pre-trigger not below samples");
+            return Err(Reason::PreTriggerNotBelowSamples);
         }
         let mut scale = [0.0; CAPTURE_SIGNALS_MAX];
         let mut bias = [0.0; CAPTURE_SIGNALS_MAX];
@@ -198,7 +199,7 @@ impl Capture {
         for (k, &s) in c.signals.iter().enumerate() {
             let (centre, half) = full_scale(s, p);
             if !(half > 0.0 && half.is_finite() && centre.is_finite()) {
-                return Err("a signal's full scale is not positive (ratings, stroke)");
+                return Err(Reason::FullScaleNotPositive);
             }
             let codes = FULL_SCALE_CODE / half;
             if let (Some(sc), Some(b), Some(sg)) = (scale.get_mut(k), bias.get_mut(k), signal.get_mut(k)) {
@@ -240,9 +241,9 @@ impl Capture {
     }
 
     /// Triggers an armed capture at its next sample, whatever it waits for.
-    pub fn trigger_now(&mut self) -> Result<(), &'static str> {
+    pub fn trigger_now(&mut self) -> Result<(), Reason> {
         if self.state != CaptureState::Armed {
-            return Err("capture not armed");
+            return Err(Reason::CaptureNotArmed);
         }
         self.pending = true;
         Ok(())
@@ -348,9 +349,9 @@ impl Capture {
     }
 
     /// The layout of a done capture.
-    pub fn layout(&self) -> Result<CaptureLayout, &'static str> {
+    pub fn layout(&self) -> Result<CaptureLayout, Reason> {
         if self.state != CaptureState::Done {
-            return Err("capture not done");
+            return Err(Reason::CaptureNotDone);
         }
         let mut unit_per_code = [0.0; CAPTURE_SIGNALS_MAX];
         let mut offset = [0.0; CAPTURE_SIGNALS_MAX];
@@ -377,9 +378,9 @@ impl Capture {
 
     /// Reads `out.len()` values (or to the record's end) of slot `signal`
     /// from record sample `start` (0 = oldest).
-    pub fn read(&self, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, &'static str> {
+    pub fn read(&self, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, Reason> {
         let layout = self.layout()?;
-        let store = self.store.ok_or("no capture store attached")?;
+        let store = self.store.ok_or(Reason::NoCaptureStore)?;
         store.read(&layout, signal, start, out)
     }
 }

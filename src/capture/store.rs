@@ -12,6 +12,7 @@
 use core::sync::atomic::{AtomicI16, Ordering};
 
 use super::CaptureLayout;
+use crate::protocol::Reason;
 
 
 /// Cells in the store: 4 signals × 1024 samples, 2 × 2048 or 1 × 4096.
@@ -51,16 +52,16 @@ impl CaptureStore {
     /// Values of `signal` (its slot in the configuration) from record sample
     /// `start` (0 = oldest) into `out`, in engineering units; returns how
     /// many (fewer than `out.len()` at the record's end).
-    pub fn read(&self, layout: &CaptureLayout, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, &'static str> {
+    pub fn read(&self, layout: &CaptureLayout, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, Reason> {
         let k = usize::from(signal);
         if k >= usize::from(layout.signals) {
-            return Err("no such signal in this capture");
+            return Err(Reason::NoSuchSignal);
         }
         if start >= layout.length {
-            return Err("start beyond the record");
+            return Err(Reason::StartBeyondRecord);
         }
         let (Some(&inv), Some(&offset)) = (layout.unit_per_code.get(k), layout.offset.get(k)) else {
-            return Err("no such signal in this capture");
+            return Err(Reason::NoSuchSignal);
         };
         let n = out.len().min(usize::from(layout.length.saturating_sub(start)));
         let frames = usize::from(layout.samples);

@@ -20,9 +20,13 @@ use crate::telemetry::Mode;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ApplyError {
-    /// This field (or group, `control.motor`) changes only with the bridge
-    /// off (mode `Disabled` or `Fault`, no short-circuit braking).
-    NeedsBridgeOff { field: &'static str },
+    /// This leaf (index, `params::leaves`; the first such that changed)
+    /// changes only with the bridge off (mode `Disabled` or `Fault`, no
+    /// short-circuit braking).
+    NeedsBridgeOff { leaf: u16 },
+    /// The controller did not answer (on the board: the PWM interrupt did
+    /// not take the set in time); nothing was applied.
+    NoAnswer,
 }
 
 impl Controller {
@@ -40,9 +44,9 @@ impl Controller {
         let new = *new.get();
         let old = self.params;
         let structural = old.bridge_off_change(&new);
-        if let Some(field) = structural {
+        if let Some(leaf) = structural {
             if !self.bridge_is_off() {
-                return Err(ApplyError::NeedsBridgeOff { field });
+                return Err(ApplyError::NeedsBridgeOff { leaf });
             }
         }
         if old.speed_pi != new.speed_pi || old.torque_filter_hz != new.torque_filter_hz {

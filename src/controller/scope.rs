@@ -16,6 +16,7 @@ use crate::motion::ScurveMove;
 use crate::protocol::{CaptureConfig, CaptureStatus, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use crate::telemetry::Mode;
 use crate::test_signals::{Chirp, TestPhase, TestRun, TEST_DURATION_MAX_S};
+use crate::protocol::Reason;
 
 impl Controller {
     // ---- capture ----
@@ -30,7 +31,7 @@ impl Controller {
 
     /// Checks and arms a capture; on refusal nothing changes and the reason
     /// is named. Re-arming drops a capture in progress or done.
-    pub fn capture_configure(&mut self, config: &CaptureConfig) -> Result<(), &'static str> {
+    pub fn capture_configure(&mut self, config: &CaptureConfig) -> Result<(), Reason> {
         self.capture.configure(config, &self.params)?;
         self.refresh_hooks();
         Ok(())
@@ -38,7 +39,7 @@ impl Controller {
 
     /// Triggers the armed capture at its next sample (whatever trigger it
     /// was armed with).
-    pub fn capture_trigger(&mut self) -> Result<(), &'static str> {
+    pub fn capture_trigger(&mut self) -> Result<(), Reason> {
         self.capture.trigger_now()
     }
 
@@ -49,13 +50,13 @@ impl Controller {
     /// What a reader of the store needs, once the capture is done: thread
     /// mode may then read the store directly ([`CaptureStore::read`]); the
     /// interrupt writes nothing more until the next configure.
-    pub fn capture_layout(&self) -> Result<CaptureLayout, &'static str> {
+    pub fn capture_layout(&self) -> Result<CaptureLayout, Reason> {
         self.capture.layout()
     }
 
     /// Values of the capture's signal slot `signal` from record sample
     /// `start` (0 = oldest) into `out`; returns how many. Done captures only.
-    pub fn capture_read(&self, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, &'static str> {
+    pub fn capture_read(&self, signal: u8, start: u16, out: &mut [f32]) -> Result<usize, Reason> {
         self.capture.read(signal, start, out)
     }
 
@@ -79,25 +80,25 @@ impl Controller {
     /// triggers that capture there; at its end the drive
     /// holds (a position step at the new place; the others where the rod
     /// is). Faults still act during a test; a fault or `Disable` aborts it.
-    pub fn start_test(&mut self, signal: TestSignal) -> Result<(), &'static str> {
+    pub fn start_test(&mut self, signal: TestSignal) -> Result<(), Reason> {
         if !self.faults.is_empty() {
-            return Err("faults latched");
+            return Err(Reason::FaultsLatched);
         }
         if self.mode != Mode::Running {
-            return Err("not running (enable first)");
+            return Err(Reason::NotRunning);
         }
         if self.test.active() {
-            return Err("a test is already running");
+            return Err(Reason::TestRunning);
         }
         if self.move_in_progress() {
-            return Err("a move or stream is in progress");
+            return Err(Reason::MoveInProgress);
         }
         if self.brake_opening() {
-            return Err("the brake is still opening");
+            return Err(Reason::BrakeOpening);
         }
         let duration_s = TestRun::duration_s(&signal);
         if !(duration_s > 0.0 && duration_s <= TEST_DURATION_MAX_S) {
-            return Err("duration not in (0, 60] s");
+            return Err(Reason::DurationOutOfRange);
         }
         let pwm_hz = self.params.rates.pwm_frequency_hz;
         // Whole periods, at least one.
@@ -108,59 +109,59 @@ impl Controller {
         match signal {
             TestSignal::CurrentStep { axis_q, amplitude_a, .. } => {
                 if !amplitude_a.is_finite() {
-                    return Err("amplitude not finite");
+                    return Err(Reason::AmplitudeNotFinite);
                 }
                 if amplitude_a.abs() > l.current_max_a {
-                    return Err("current step beyond limits.current_max_a");
+                    return Err(Reason::CurrentStepBeyondLimit);
                 }
                 let base = self.current_reference.q;
                 let (d, q) = if axis_q { (0.0, base + amplitude_a) } else { (amplitude_a, base) };
                 if d * d + q * q > self.derived.current_limit_a * self.derived.current_limit_a {
-                    return Err("current step plus hold current beyond the current limit");
+                    return Err(Reason::CurrentStepPlusHoldBeyondLimit);
                 }
             }
             TestSignal::SpeedStep { amplitude_rad_s, .. } => {
                 if !amplitude_rad_s.is_finite() {
-                    return Err("amplitude not finite");
+                    return Err(Reason::AmplitudeNotFinite);
                 }
                 if !homed {
-                    return Err("not homed: the stroke is unknown");
+                    return Err(Reason::NotHomedStrokeUnknown);
                 }
                 let w = self.speed_reference_rad_s + amplitude_rad_s;
                 if w.abs() > l.speed_max_rad_s {
-                    return Err("speed step beyond limits.speed_max_rad_s");
+                    return Err(Reason::SpeedStepBeyondLimit);
                 }
                 // Where a stop at the end of the step would come to rest.
                 let v = w * self.params.metres_per_rad();
                 let rest = self.motor_position_m() + v * duration_s + v * v.abs() / (2.0 * self.params.faults.stop_deceleration_m_s2);
                 if !(rest >= l.stroke_min_m && rest <= l.stroke_max_m) {
-                    return Err("speed step would leave the stroke");
+                    return Err(Reason::SpeedStepLeavesStroke);
                 }
             }
             TestSignal::PositionStep { distance_m, .. } => {
                 if !distance_m.is_finite() {
-                    return Err("distance not finite");
+                    return Err(Reason::DistanceNotFinite);
                 }
                 if !homed {
-                    return Err("not homed: the stroke is unknown");
+                    return Err(Reason::NotHomedStrokeUnknown);
                 }
                 if distance_m.abs() >= self.params.faults.position_following_error_m {
-                    return Err("position step not below faults.position_following_error_m");
+                    return Err(Reason::PositionStepBeyondFollowingError);
                 }
                 let target = self.trajectory.end_m() + distance_m;
                 if !(target >= l.stroke_min_m && target <= l.stroke_max_m) {
-                    return Err("position step beyond the stroke");
+                    return Err(Reason::PositionStepBeyondStroke);
                 }
             }
             TestSignal::Chirp { target, amplitude, start_hz, end_hz, .. } => {
                 if !(amplitude.is_finite() && start_hz.is_finite() && end_hz.is_finite()) {
-                    return Err("chirp argument not finite");
+                    return Err(Reason::ChirpArgumentNotFinite);
                 }
                 if !(amplitude >= 0.0) {
-                    return Err("chirp amplitude negative");
+                    return Err(Reason::ChirpAmplitudeNegative);
                 }
                 if !(start_hz > 0.0 && end_hz > 0.0) {
-                    return Err("chirp frequency not positive");
+                    return Err(Reason::ChirpFrequencyNotPositive);
                 }
                 let divider = match target {
                     ChirpTarget::Current => 1,
@@ -169,32 +170,32 @@ impl Controller {
                 };
                 let nyquist_hz = 0.5 * pwm_hz / divider as f32;
                 if !(start_hz < nyquist_hz && end_hz < nyquist_hz) {
-                    return Err("chirp frequency not below the loop's Nyquist");
+                    return Err(Reason::ChirpAboveNyquist);
                 }
                 match target {
                     ChirpTarget::Current => {
                         if amplitude + self.current_reference.q.abs() > self.derived.current_limit_a {
-                            return Err("chirp plus hold current beyond the current limit");
+                            return Err(Reason::ChirpPlusHoldBeyondLimit);
                         }
                     }
                     ChirpTarget::Speed => {
                         if !homed {
-                            return Err("not homed: the stroke is unknown");
+                            return Err(Reason::NotHomedStrokeUnknown);
                         }
                         if amplitude > l.speed_max_rad_s {
-                            return Err("chirp beyond limits.speed_max_rad_s");
+                            return Err(Reason::ChirpBeyondSpeedLimit);
                         }
                     }
                     ChirpTarget::Position => {
                         if !homed {
-                            return Err("not homed: the stroke is unknown");
+                            return Err(Reason::NotHomedStrokeUnknown);
                         }
                         if amplitude >= self.params.faults.position_following_error_m {
-                            return Err("chirp not below faults.position_following_error_m");
+                            return Err(Reason::ChirpBeyondFollowingError);
                         }
                         let x = self.trajectory.end_m();
                         if !(x - amplitude >= l.stroke_min_m && x + amplitude <= l.stroke_max_m) {
-                            return Err("chirp beyond the stroke");
+                            return Err(Reason::ChirpBeyondStroke);
                         }
                     }
                 }

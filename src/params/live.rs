@@ -12,6 +12,7 @@
 //! power stage. Changing these under a turning motor would move the frame
 //! the rod is held in or a trip threshold mid-motion.
 
+use super::leaves::{self, LEAF_COUNT};
 use super::ControlParams;
 
 /// Path prefixes of the parameters that change live (a trailing `.` is a
@@ -38,14 +39,52 @@ const LIVE: &[&str] = &[
     "control.load_estimate.",
 ];
 
-/// `a != b` as a `return Some(name)`.
-macro_rules! off {
-    ($a:expr, $b:expr, $name:literal) => {
-        if $a != $b {
-            return Some($name);
+/// `path` starts with `prefix` (`str::starts_with` is not `const`).
+const fn starts_with(path: &[u8], prefix: &[u8]) -> bool {
+    if prefix.len() > path.len() {
+        return false;
+    }
+    let (mut p, mut q) = (path, prefix);
+    while let ([a, pt @ ..], [b, qt @ ..]) = (p, q) {
+        if *a != *b {
+            return false;
         }
-    };
+        p = pt;
+        q = qt;
+    }
+    true
 }
+
+/// [`ControlParams::is_live_path`] as a `const fn`.
+const fn live(path: &str) -> bool {
+    let path = path.as_bytes();
+    let mut rest = LIVE;
+    while let [p, tail @ ..] = rest {
+        let p = p.as_bytes();
+        let group = matches!(p, [.., b'.']);
+        if starts_with(path, p) && (group || path.len() == p.len()) {
+            return true;
+        }
+        rest = tail;
+    }
+    false
+}
+
+/// Bit `i`: leaf `i` changes live. Worked out from the paths when the
+/// image is built, so the drive compares leaves through the table and
+/// holds neither the paths nor a field-by-field comparison.
+const LIVE_LEAVES: u128 = {
+    let mut mask = 0u128;
+    let mut i = 0;
+    while i < LEAF_COUNT {
+        if live(leaves::path(i)) {
+            mask |= 1 << i;
+        }
+        i += 1;
+    }
+    mask
+};
+const _: () = assert!(LEAF_COUNT <= 128);
 
 impl ControlParams {
     /// True if the parameter at `path` may change with the bridge on.
@@ -53,26 +92,13 @@ impl ControlParams {
         LIVE.iter().any(|p| if p.ends_with('.') { path.starts_with(p) } else { path == *p })
     }
 
-    /// The first field (or group) that differs between `self` and `new` and
-    /// changes only with the bridge off; `None` if every difference is live.
-    /// The same split as [`ControlParams::is_live_path`] (a test walks every
-    /// leaf).
-    pub fn bridge_off_change(&self, new: &Self) -> Option<&'static str> {
-        off!(self.motor, new.motor, "control.motor");
-        off!(self.drive_train.screw_lead_m, new.drive_train.screw_lead_m, "control.drive_train.screw_lead_m");
-        off!(self.rates, new.rates, "control.rates");
-        off!(self.encoder, new.encoder, "control.encoder");
-        off!(self.limits.stroke_min_m, new.limits.stroke_min_m, "control.limits.stroke_min_m");
-        off!(self.limits.stroke_max_m, new.limits.stroke_max_m, "control.limits.stroke_max_m");
-        off!(self.faults, new.faults, "control.faults");
-        off!(self.startup, new.startup, "control.startup");
-        off!(self.calibration, new.calibration, "control.calibration");
-        off!(self.commutation, new.commutation, "control.commutation");
-        off!(self.homing, new.homing, "control.homing");
-        off!(self.power_stage, new.power_stage, "control.power_stage");
-        off!(self.thermal, new.thermal, "control.thermal");
-        off!(self.ratings, new.ratings, "control.ratings");
-        off!(self.brake, new.brake, "control.brake");
-        None
+    /// The first leaf (index, `params::leaves`) that differs between
+    /// `self` and `new` and changes only with the bridge off; `None` if
+    /// every difference is live. The same split as
+    /// [`ControlParams::is_live_path`] (a test walks every leaf).
+    pub fn bridge_off_change(&self, new: &Self) -> Option<u16> {
+        (0..LEAF_COUNT)
+            .find(|&i| LIVE_LEAVES.checked_shr(i as u32).unwrap_or(0) & 1 == 0 && leaves::get(self, i) != leaves::get(new, i))
+            .and_then(|i| u16::try_from(i).ok())
     }
 }

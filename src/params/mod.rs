@@ -8,6 +8,7 @@
 
 use core::f32::consts::PI;
 
+pub mod leaves;
 mod lifecycle;
 mod live;
 pub mod record;

@@ -2,28 +2,38 @@
 //!
 //! | bytes | content |
 //! |---|---|
-//! | 4 | magic `CSP1` |
+//! | 4 | magic `CSP2` |
 //! | 8 | `PARAMS_SCHEMA_HASH` (the layout of `ControlParams`) |
 //! | 2 | body length, little-endian |
-//! | n | `postcard(ControlParams)` |
+//! | n | the leaves in path order, 4 bytes each, little-endian (`params::leaves`) |
 //! | 4 | CRC-32 (ISO-HDLC) of everything before it, little-endian |
 //!
 //! A record is used only whole: the CRC, the schema hash, the length, the
-//! decoding (no trailing bytes) and `ControlParams::validate` must all pass,
-//! or [`decode`] says which did not and nothing is applied.
+//! decoding (every word a value of its leaf's type) and
+//! `ControlParams::validate` must all pass, or [`decode`] says which did
+//! not and nothing is applied.
+//!
+//! The body is the leaf table's words, not `postcard(ControlParams)` (the
+//! `CSP1` records): the serde code of the whole struct cost ≈ 7 KB of the
+//! image, the table walk a few hundred bytes. The schema hash still covers
+//! the layout: the table follows the struct's declaration order, which the
+//! hash covers too. A `CSP1` record is refused by its magic.
 
-use crc::{Crc, CRC_32_ISO_HDLC};
 
+use super::leaves::{self, LEAF_COUNT};
 use super::{ControlParams, ParamError, ValidatedParams};
+use crate::protocol::frame::CRC;
 use crate::protocol::PARAMS_SCHEMA_HASH;
 
-pub const MAGIC: [u8; 4] = *b"CSP1";
+pub const MAGIC: [u8; 4] = *b"CSP2";
 /// Largest record; `ControlParams` encodes to well under this (a test
 /// checks the margin).
 pub const RECORD_MAX: usize = 1024;
 const HEADER: usize = 4 + 8 + 2;
 const CRC_BYTES: usize = 4;
-const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+/// Bytes per leaf in the body.
+const WORD: usize = 4;
+const BODY: usize = LEAF_COUNT * WORD;
 
 /// Why a record was not used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,7 +50,8 @@ pub enum RecordError {
     Schema,
     /// The length field disagrees with the record's size.
     Length,
-    /// The body is not a `ControlParams` (or has bytes left over).
+    /// The body is not one word per leaf, or a word is not a value of its
+    /// leaf's type.
     Decode,
     /// Decoded, but the set does not validate.
     Invalid(ParamError),
@@ -70,7 +81,11 @@ pub fn encode<'a>(p: &ControlParams, buf: &'a mut [u8; RECORD_MAX]) -> Result<&'
     let (head, rest) = buf.split_at_mut(HEADER);
     let body_room = rest.len().saturating_sub(CRC_BYTES);
     let body = rest.get_mut(..body_room).ok_or(RecordError::TooLarge)?;
-    let n = postcard::to_slice(p, body).map_err(|_| RecordError::TooLarge)?.len();
+    let body = body.get_mut(..BODY).ok_or(RecordError::TooLarge)?;
+    for (i, slot) in body.chunks_exact_mut(WORD).enumerate() {
+        slot.copy_from_slice(&leaves::to_word(p, i).ok_or(RecordError::TooLarge)?.to_le_bytes());
+    }
+    let n = BODY;
     let len = u16::try_from(n).map_err(|_| RecordError::TooLarge)?;
     let mut header = [0u8; HEADER];
     for (slot, b) in header.iter_mut().zip(MAGIC.iter().chain(PARAMS_SCHEMA_HASH.iter()).chain(len.to_le_bytes().iter())) {
@@ -110,9 +125,16 @@ pub fn decode(record: &[u8]) -> Result<ValidatedParams, RecordError> {
     if usize::from(u16::from_le_bytes(len)) != body.len() {
         return Err(RecordError::Length);
     }
-    let (p, rest) = postcard::take_from_bytes::<ControlParams>(body).map_err(|_| RecordError::Decode)?;
-    if !rest.is_empty() {
+    if body.len() != BODY {
         return Err(RecordError::Decode);
+    }
+    // Every leaf is overwritten: the defaults only give the struct its
+    // initial (valid) enum and bool values.
+    let mut p = ControlParams::DEFAULT;
+    for (i, word) in body.chunks_exact(WORD).enumerate() {
+        let mut w = [0u8; WORD];
+        w.copy_from_slice(word);
+        leaves::from_word(&mut p, i, u32::from_le_bytes(w)).map_err(|_| RecordError::Decode)?;
     }
     ValidatedParams::new(p).map_err(RecordError::Invalid)
 }

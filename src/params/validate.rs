@@ -2,18 +2,34 @@
 //! A `const fn`, so the firmware's set is checked when the image is built.
 
 use super::ControlParams;
+use crate::leaf;
+use crate::protocol::Reason;
 
-/// A parameter that cannot be used, named by its path in the TOML file.
+/// A parameter that cannot be used: its leaf index (`params::leaves`;
+/// [`ParamError::field`] is its path in the TOML file) and why.
+///
+/// An index, not the path: the ≈ 100 paths the checks name cost ≈ 4 KB of
+/// the image as strings. The drive's server turns the index into the path
+/// through the tree (`protocol::params::name`), so a reply still names it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ParamError {
-    pub field: &'static str,
-    pub reason: &'static str,
+    pub leaf: u16,
+    pub reason: Reason,
+}
+
+impl ParamError {
+    /// The field's path (`control.speed_pi.kp`), for the host and for
+    /// compile-time messages (the drive names it through the tree instead:
+    /// this table of paths is not in the image unless called there).
+    pub const fn field(&self) -> &'static str {
+        super::leaves::path(self.leaf as usize)
+    }
 }
 
 impl core::fmt::Display for ParamError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "parameter `{}`: {}", self.field, self.reason)
+        write!(f, "parameter `{}`: {}", self.field(), self.reason)
     }
 }
 
@@ -37,37 +53,188 @@ impl ValidatedParams {
     }
 }
 
-// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
-// run-time validation is not on any fast path).
-#[inline(never)]
-const fn positive(field: &'static str, v: f32) -> Result<(), ParamError> {
-    if !v.is_finite() {
-        Err(ParamError { field, reason: "must be finite" })
-    } else if v <= 0.0 {
-        Err(ParamError { field, reason: "must be > 0" })
-    } else {
-        Ok(())
-    }
+/// A check of one leaf on its own (the checks between fields are code,
+/// below). Most of `validate` is these, so they are a table walked by one
+/// loop: as ≈ 100 calls they were ≈ 1.5 KB of the image, as rows 4 bytes
+/// each.
+#[derive(Clone, Copy, Debug)]
+enum Check {
+    /// An `f32` leaf, finite and > 0.
+    Positive,
+    /// An `f32` leaf, finite and >= 0.
+    NonNegative,
+    /// A `u32` leaf, >= 1.
+    NonZero,
 }
 
-// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
-// run-time validation is not on any fast path).
-#[inline(never)]
-const fn non_negative(field: &'static str, v: f32) -> Result<(), ParamError> {
-    if !v.is_finite() {
-        Err(ParamError { field, reason: "must be finite" })
-    } else if v < 0.0 {
-        Err(ParamError { field, reason: "must be >= 0" })
-    } else {
-        Ok(())
-    }
+/// One row: the leaf (index for the error, byte offset to read it) and its
+/// check.
+#[derive(Clone, Copy, Debug)]
+struct Rule {
+    leaf: u16,
+    offset: u16,
+    check: Check,
 }
 
-// Out of line: ≈ 100 call sites, each inlined copy costs flash (the
-// run-time validation is not on any fast path).
-#[inline(never)]
-const fn nonzero(field: &'static str, v: u32) -> Result<(), ParamError> {
-    if v == 0 { Err(ParamError { field, reason: "must be >= 1" }) } else { Ok(()) }
+/// A row; the `const _` makes the leaf's type the one the check reads.
+macro_rules! rule {
+    ($check:ident, $ty:ty, $($f:ident).+) => {{
+        const _: $ty = ControlParams::DEFAULT.$($f).+;
+        Rule { leaf: leaf!($($f).+), offset: core::mem::offset_of!(ControlParams, $($f).+) as u16, check: Check::$check }
+    }};
+}
+macro_rules! positive {
+    ($($f:ident).+) => { rule!(Positive, f32, $($f).+) };
+}
+macro_rules! non_negative {
+    ($($f:ident).+) => { rule!(NonNegative, f32, $($f).+) };
+}
+macro_rules! nonzero {
+    ($($f:ident).+) => { rule!(NonZero, u32, $($f).+) };
+}
+
+/// Every single-leaf check, in the order the fields are declared.
+const RULES: &[Rule] = &[
+    nonzero!(motor.pole_pairs),
+    positive!(motor.phase_resistance_ohm),
+    positive!(motor.inductance_d_h),
+    positive!(motor.inductance_q_h),
+    positive!(motor.flux_linkage_wb),
+    positive!(drive_train.screw_lead_m),
+    positive!(drive_train.screw_efficiency),
+    positive!(drive_train.rotating_inertia_kg_m2),
+    non_negative!(drive_train.moving_mass_kg),
+    non_negative!(drive_train.viscous_friction_n_m_s_rad),
+    non_negative!(drive_train.coulomb_friction_n_m),
+    positive!(drive_train.friction_feedforward_speed_rad_s),
+    non_negative!(drive_train.friction_feedforward_gain),
+    positive!(rates.pwm_frequency_hz),
+    nonzero!(rates.speed_loop_divider),
+    nonzero!(rates.position_loop_divider),
+    positive!(current_pi.kp),
+    non_negative!(current_pi.ki),
+    positive!(speed_pi.kp),
+    non_negative!(speed_pi.ki),
+    non_negative!(torque_filter_hz),
+    positive!(position_kp_per_s),
+    nonzero!(encoder.counts_per_rev),
+    positive!(encoder.pll_kp_per_s),
+    positive!(encoder.pll_ki_per_s2),
+    positive!(trajectory.max_velocity_m_s),
+    positive!(trajectory.max_acceleration_m_s2),
+    positive!(trajectory.max_jerk_m_s3),
+    positive!(limits.current_max_a),
+    positive!(limits.copper_power_max_w),
+    positive!(limits.speed_max_rad_s),
+    non_negative!(limits.stroke_min_m),
+    positive!(limits.stroke_max_m),
+    positive!(limits.max_modulation),
+    positive!(faults.overcurrent_trip_a),
+    positive!(faults.bus_overvoltage_v),
+    positive!(faults.bus_undervoltage_v),
+    nonzero!(faults.encoder_max_step_counts),
+    positive!(faults.encoder_max_innovation_counts),
+    positive!(faults.position_following_error_m),
+    non_negative!(faults.stroke_overtravel_m),
+    positive!(load_estimate.filter_hz),
+    positive!(faults.speed_following_error_rad_s),
+    positive!(faults.speed_following_time_s),
+    positive!(faults.encoder_lost_speed_rad_s),
+    positive!(faults.encoder_lost_time_s),
+    non_negative!(faults.stroke_soft_margin_m),
+    positive!(faults.stop_deceleration_m_s2),
+    positive!(faults.observer_shift_max_m),
+    positive!(faults.current_sum_max_a),
+    nonzero!(faults.current_sum_periods),
+    positive!(faults.stop_following_error_m),
+    positive!(faults.open_phase_window_s),
+    positive!(faults.open_phase_current_a),
+    positive!(faults.open_phase_ratio),
+    non_negative!(brake.release_time_s),
+    non_negative!(brake.engage_time_s),
+    non_negative!(brake.holding_torque_n_m),
+    non_negative!(brake.preload_time_s),
+    positive!(compensation.shift_max_m),
+    positive!(compensation.shift_rate_max_m_s),
+    positive!(thermal.continuous_current_a),
+    positive!(thermal.time_constant_s),
+    positive!(thermal.foldback_start),
+    positive!(ratings.motor_peak_current_a),
+    positive!(ratings.inverter_peak_current_a),
+    positive!(ratings.bus_max_voltage_v),
+    positive!(ratings.speed_max_rad_s),
+    positive!(calibration.duration_s),
+    positive!(calibration.offset_max_a),
+    positive!(calibration.noise_max_a),
+    positive!(calibration.bus_ripple_max_v),
+    positive!(commutation.test_current_a),
+    positive!(commutation.ramp_s),
+    positive!(commutation.sweep_s),
+    positive!(commutation.settle_s),
+    positive!(commutation.settle_speed_rad_s),
+    positive!(commutation.settle_timeout_s),
+    positive!(commutation.min_amplitude_counts),
+    positive!(commutation.max_twist_rad),
+    positive!(commutation.hold_current_d_a),
+    positive!(commutation.check_angle_rad),
+    positive!(commutation.check_time_s),
+    positive!(commutation.ratio_tolerance),
+    positive!(commutation.blocked_ratio),
+    positive!(commutation.timeout_s),
+    positive!(homing.speed_m_s),
+    positive!(homing.current_max_a),
+    positive!(homing.contact_following_m),
+    positive!(homing.contact_speed_rad_s),
+    positive!(homing.contact_time_s),
+    non_negative!(homing.backoff_m),
+    positive!(homing.travel_max_m),
+    positive!(homing.jog_speed_max_m_s),
+    positive!(power_stage.temperature_foldback_c),
+    positive!(power_stage.regen_bus_start_v),
+    non_negative!(power_stage.regen_power_max_w),
+    positive!(power_stage.emf_speed_mismatch_rad_s),
+    positive!(power_stage.emf_mismatch_time_s),
+    positive!(stream.period_max_s),
+];
+
+/// Runs [`RULES`] over `p`: the first leaf that fails, and why.
+const fn check_rules(p: &ControlParams) -> Result<(), ParamError> {
+    let base = (p as *const ControlParams).cast::<u8>();
+    let mut rest = RULES;
+    while let [rule, tail @ ..] = rest {
+        let at = base.wrapping_add(rule.offset as usize);
+        let leaf = rule.leaf;
+        // SAFETY: `offset` is `offset_of!` of a field of `ControlParams`
+        // whose type the `rule!` row checked to be the one read here (`f32`
+        // for the float checks, `u32` for `NonZero`): an initialised,
+        // aligned value inside `*p`.
+        let bad = match rule.check {
+            Check::Positive | Check::NonNegative => {
+                let v = unsafe { *at.cast::<f32>() };
+                if !v.is_finite() {
+                    Some(Reason::MustBeFinite)
+                } else if matches!(rule.check, Check::Positive) && v <= 0.0 {
+                    Some(Reason::MustBePositive)
+                } else if v < 0.0 {
+                    Some(Reason::MustBeNonNegative)
+                } else {
+                    None
+                }
+            }
+            Check::NonZero => {
+                if unsafe { *at.cast::<u32>() } == 0 {
+                    Some(Reason::MustBeAtLeastOne)
+                } else {
+                    None
+                }
+            }
+        };
+        if let Some(reason) = bad {
+            return Err(ParamError { leaf, reason });
+        }
+        rest = tail;
+    }
+    Ok(())
 }
 
 /// `?` for `const fn`s (the trait-based `?` is not const).
@@ -82,171 +249,101 @@ macro_rules! check {
 impl ControlParams {
     /// Refuses a parameter set the loops cannot run with, naming the field.
     pub const fn validate(&self) -> Result<(), ParamError> {
-        let m = &self.motor;
-        check!(nonzero("control.motor.pole_pairs", m.pole_pairs));
-        check!(positive("control.motor.phase_resistance_ohm", m.phase_resistance_ohm));
-        check!(positive("control.motor.inductance_d_h", m.inductance_d_h));
-        check!(positive("control.motor.inductance_q_h", m.inductance_q_h));
-        check!(positive("control.motor.flux_linkage_wb", m.flux_linkage_wb));
+        check!(check_rules(self));
         let d = &self.drive_train;
-        check!(positive("control.drive_train.screw_lead_m", d.screw_lead_m));
-        check!(positive("control.drive_train.screw_efficiency", d.screw_efficiency));
         if d.screw_efficiency > 1.0 {
-            return Err(ParamError { field: "control.drive_train.screw_efficiency", reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(drive_train.screw_efficiency), reason: Reason::MustBeAtMostOne });
         }
-        check!(positive("control.drive_train.rotating_inertia_kg_m2", d.rotating_inertia_kg_m2));
-        check!(non_negative("control.drive_train.moving_mass_kg", d.moving_mass_kg));
-        check!(non_negative("control.drive_train.viscous_friction_n_m_s_rad", d.viscous_friction_n_m_s_rad));
-        check!(non_negative("control.drive_train.coulomb_friction_n_m", d.coulomb_friction_n_m));
-        check!(positive("control.drive_train.friction_feedforward_speed_rad_s", d.friction_feedforward_speed_rad_s));
-        check!(non_negative("control.drive_train.friction_feedforward_gain", d.friction_feedforward_gain));
         if d.friction_feedforward_gain > 1.0 {
             // Above the modelled friction the feedforward drives the rod
             // ahead of its reference at every start.
-            return Err(ParamError { field: "control.drive_train.friction_feedforward_gain", reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(drive_train.friction_feedforward_gain), reason: Reason::MustBeAtMostOne });
         }
-        check!(positive("control.rates.pwm_frequency_hz", self.rates.pwm_frequency_hz));
-        check!(nonzero("control.rates.speed_loop_divider", self.rates.speed_loop_divider));
-        check!(nonzero("control.rates.position_loop_divider", self.rates.position_loop_divider));
         if !self.rates.position_loop_divider.is_multiple_of(self.rates.speed_loop_divider) {
             return Err(ParamError {
-                field: "control.rates.position_loop_divider",
-                reason: "must be a multiple of speed_loop_divider",
+                leaf: leaf!(rates.position_loop_divider),
+                reason: Reason::MultipleOfSpeedDivider,
             });
         }
-        check!(positive("control.current_pi.kp", self.current_pi.kp));
-        check!(non_negative("control.current_pi.ki", self.current_pi.ki));
-        check!(positive("control.speed_pi.kp", self.speed_pi.kp));
-        check!(non_negative("control.speed_pi.ki", self.speed_pi.ki));
-        check!(non_negative("control.torque_filter_hz", self.torque_filter_hz));
-        check!(positive("control.position_kp_per_s", self.position_kp_per_s));
         let e = &self.encoder;
-        check!(nonzero("control.encoder.counts_per_rev", e.counts_per_rev));
         if e.counts_per_rev > 32_768 {
             // The core unwraps a 16-bit counter: one revolution must fit in half its range.
-            return Err(ParamError { field: "control.encoder.counts_per_rev", reason: "must be <= 32768" });
+            return Err(ParamError { leaf: leaf!(encoder.counts_per_rev), reason: Reason::CountsPerRevTooHigh });
         }
         if e.direction != 1 && e.direction != -1 {
-            return Err(ParamError { field: "control.encoder.direction", reason: "must be 1 or -1" });
+            return Err(ParamError { leaf: leaf!(encoder.direction), reason: Reason::MustBeOneOrMinusOne });
         }
         if !e.electrical_offset_rad.is_finite() {
-            return Err(ParamError { field: "control.encoder.electrical_offset_rad", reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(encoder.electrical_offset_rad), reason: Reason::MustBeFinite });
         }
-        check!(positive("control.encoder.pll_kp_per_s", e.pll_kp_per_s));
-        check!(positive("control.encoder.pll_ki_per_s2", e.pll_ki_per_s2));
-        let t = &self.trajectory;
-        check!(positive("control.trajectory.max_velocity_m_s", t.max_velocity_m_s));
-        check!(positive("control.trajectory.max_acceleration_m_s2", t.max_acceleration_m_s2));
-        check!(positive("control.trajectory.max_jerk_m_s3", t.max_jerk_m_s3));
         let l = &self.limits;
-        check!(positive("control.limits.current_max_a", l.current_max_a));
-        check!(positive("control.limits.copper_power_max_w", l.copper_power_max_w));
-        check!(positive("control.limits.speed_max_rad_s", l.speed_max_rad_s));
-        check!(non_negative("control.limits.stroke_min_m", l.stroke_min_m));
-        check!(positive("control.limits.stroke_max_m", l.stroke_max_m));
         if l.stroke_max_m <= l.stroke_min_m {
-            return Err(ParamError { field: "control.limits.stroke_max_m", reason: "must exceed stroke_min_m" });
+            return Err(ParamError { leaf: leaf!(limits.stroke_max_m), reason: Reason::MustExceedStrokeMin });
         }
-        check!(positive("control.limits.max_modulation", l.max_modulation));
         if l.max_modulation > 1.0 {
-            return Err(ParamError { field: "control.limits.max_modulation", reason: "must be <= 1" });
+            return Err(ParamError { leaf: leaf!(limits.max_modulation), reason: Reason::MustBeAtMostOne });
         }
         let f = &self.faults;
-        check!(positive("control.faults.overcurrent_trip_a", f.overcurrent_trip_a));
         if f.overcurrent_trip_a < l.current_max_a {
             return Err(ParamError {
-                field: "control.faults.overcurrent_trip_a",
-                reason: "must be >= limits.current_max_a, or normal operation trips",
+                leaf: leaf!(faults.overcurrent_trip_a),
+                reason: Reason::TripBelowCurrentLimit,
             });
         }
-        check!(positive("control.faults.bus_overvoltage_v", f.bus_overvoltage_v));
-        check!(positive("control.faults.bus_undervoltage_v", f.bus_undervoltage_v));
         if f.bus_overvoltage_v <= f.bus_undervoltage_v {
-            return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "must exceed bus_undervoltage_v" });
+            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: Reason::MustExceedBusUndervoltage });
         }
-        check!(nonzero("control.faults.encoder_max_step_counts", f.encoder_max_step_counts));
-        check!(positive("control.faults.encoder_max_innovation_counts", f.encoder_max_innovation_counts));
-        check!(positive("control.faults.position_following_error_m", f.position_following_error_m));
-        check!(non_negative("control.faults.stroke_overtravel_m", f.stroke_overtravel_m));
-        check!(positive("control.load_estimate.filter_hz", self.load_estimate.filter_hz));
         check!(self.validate_lifecycle());
-        check!(positive("control.faults.speed_following_error_rad_s", f.speed_following_error_rad_s));
-        check!(positive("control.faults.speed_following_time_s", f.speed_following_time_s));
-        check!(positive("control.faults.encoder_lost_speed_rad_s", f.encoder_lost_speed_rad_s));
-        check!(positive("control.faults.encoder_lost_time_s", f.encoder_lost_time_s));
-        check!(non_negative("control.faults.stroke_soft_margin_m", f.stroke_soft_margin_m));
         if f.stroke_soft_margin_m >= f.stroke_overtravel_m {
             return Err(ParamError {
-                field: "control.faults.stroke_soft_margin_m",
-                reason: "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
+                leaf: leaf!(faults.stroke_soft_margin_m),
+                reason: Reason::MarginNotBelowOvertravel,
             });
         }
-        check!(positive("control.faults.stop_deceleration_m_s2", f.stop_deceleration_m_s2));
         if f.stop_deceleration_m_s2 < self.trajectory.max_acceleration_m_s2 {
             return Err(ParamError {
-                field: "control.faults.stop_deceleration_m_s2",
-                reason: "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
+                leaf: leaf!(faults.stop_deceleration_m_s2),
+                reason: Reason::StopDecelerationTooLow,
             });
         }
-        check!(positive("control.faults.observer_shift_max_m", f.observer_shift_max_m));
-        check!(positive("control.faults.current_sum_max_a", f.current_sum_max_a));
-        check!(nonzero("control.faults.current_sum_periods", f.current_sum_periods));
-        check!(positive("control.faults.stop_following_error_m", f.stop_following_error_m));
-        check!(positive("control.faults.open_phase_window_s", f.open_phase_window_s));
-        check!(positive("control.faults.open_phase_current_a", f.open_phase_current_a));
-        check!(positive("control.faults.open_phase_ratio", f.open_phase_ratio));
         if f.open_phase_ratio >= 1.0 {
-            return Err(ParamError { field: "control.faults.open_phase_ratio", reason: "must be < 1" });
+            return Err(ParamError { leaf: leaf!(faults.open_phase_ratio), reason: Reason::MustBeBelowOne });
         }
-        let b = &self.brake;
-        check!(non_negative("control.brake.release_time_s", b.release_time_s));
-        check!(non_negative("control.brake.engage_time_s", b.engage_time_s));
-        check!(non_negative("control.brake.holding_torque_n_m", b.holding_torque_n_m));
-        check!(non_negative("control.brake.preload_time_s", b.preload_time_s));
         let c = &self.compensation;
-        check!(positive("control.compensation.shift_max_m", c.shift_max_m));
         if c.shift_max_m > f.observer_shift_max_m {
             return Err(ParamError {
-                field: "control.compensation.shift_max_m",
-                reason: "must be <= faults.observer_shift_max_m",
+                leaf: leaf!(compensation.shift_max_m),
+                reason: Reason::AboveObserverShiftMax,
             });
         }
-        check!(positive("control.compensation.shift_rate_max_m_s", c.shift_rate_max_m_s));
         let th = &self.thermal;
-        check!(positive("control.thermal.continuous_current_a", th.continuous_current_a));
         if th.continuous_current_a > l.current_max_a {
-            return Err(ParamError { field: "control.thermal.continuous_current_a", reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(thermal.continuous_current_a), reason: Reason::AboveCurrentLimit });
         }
-        check!(positive("control.thermal.time_constant_s", th.time_constant_s));
-        check!(positive("control.thermal.foldback_start", th.foldback_start));
         if th.foldback_start >= 1.0 {
-            return Err(ParamError { field: "control.thermal.foldback_start", reason: "must be < 1" });
+            return Err(ParamError { leaf: leaf!(thermal.foldback_start), reason: Reason::MustBeBelowOne });
         }
         if !(th.trip_level > 1.0) || !th.trip_level.is_finite() {
-            return Err(ParamError { field: "control.thermal.trip_level", reason: "must be finite and > 1" });
+            return Err(ParamError { leaf: leaf!(thermal.trip_level), reason: Reason::MustBeFiniteAboveOne });
         }
         let r = &self.ratings;
-        check!(positive("control.ratings.motor_peak_current_a", r.motor_peak_current_a));
-        check!(positive("control.ratings.inverter_peak_current_a", r.inverter_peak_current_a));
-        check!(positive("control.ratings.bus_max_voltage_v", r.bus_max_voltage_v));
-        check!(positive("control.ratings.speed_max_rad_s", r.speed_max_rad_s));
         if l.current_max_a > r.motor_peak_current_a || l.current_max_a > r.inverter_peak_current_a {
             return Err(ParamError {
-                field: "control.limits.current_max_a",
-                reason: "above the motor or inverter peak rating (control.ratings)",
+                leaf: leaf!(limits.current_max_a),
+                reason: Reason::AbovePeakRating,
             });
         }
         if f.overcurrent_trip_a > r.inverter_peak_current_a {
             return Err(ParamError {
-                field: "control.faults.overcurrent_trip_a",
-                reason: "above control.ratings.inverter_peak_current_a",
+                leaf: leaf!(faults.overcurrent_trip_a),
+                reason: Reason::AboveInverterPeakRating,
             });
         }
         if f.bus_overvoltage_v > r.bus_max_voltage_v {
-            return Err(ParamError { field: "control.faults.bus_overvoltage_v", reason: "above control.ratings.bus_max_voltage_v" });
+            return Err(ParamError { leaf: leaf!(faults.bus_overvoltage_v), reason: Reason::AboveBusRating });
         }
         if l.speed_max_rad_s > r.speed_max_rad_s {
-            return Err(ParamError { field: "control.limits.speed_max_rad_s", reason: "above control.ratings.speed_max_rad_s" });
+            return Err(ParamError { leaf: leaf!(limits.speed_max_rad_s), reason: Reason::AboveSpeedRating });
         }
         Ok(())
     }
@@ -257,82 +354,49 @@ impl ControlParams {
     const fn validate_lifecycle(&self) -> Result<(), ParamError> {
         let l = &self.limits;
         if !self.startup.expected_load_force_n.is_finite() {
-            return Err(ParamError { field: "control.startup.expected_load_force_n", reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(startup.expected_load_force_n), reason: Reason::MustBeFinite });
         }
-        let c = &self.calibration;
-        check!(positive("control.calibration.duration_s", c.duration_s));
-        check!(positive("control.calibration.offset_max_a", c.offset_max_a));
-        check!(positive("control.calibration.noise_max_a", c.noise_max_a));
-        check!(positive("control.calibration.bus_ripple_max_v", c.bus_ripple_max_v));
         let m = &self.commutation;
-        check!(positive("control.commutation.test_current_a", m.test_current_a));
         if m.test_current_a > l.current_max_a {
-            return Err(ParamError { field: "control.commutation.test_current_a", reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(commutation.test_current_a), reason: Reason::AboveCurrentLimit });
         }
-        check!(positive("control.commutation.ramp_s", m.ramp_s));
-        check!(positive("control.commutation.sweep_s", m.sweep_s));
-        check!(positive("control.commutation.settle_s", m.settle_s));
-        check!(positive("control.commutation.settle_speed_rad_s", m.settle_speed_rad_s));
-        check!(positive("control.commutation.settle_timeout_s", m.settle_timeout_s));
-        check!(positive("control.commutation.min_amplitude_counts", m.min_amplitude_counts));
-        check!(positive("control.commutation.max_twist_rad", m.max_twist_rad));
-        check!(positive("control.commutation.hold_current_d_a", m.hold_current_d_a));
         if m.hold_current_d_a > l.current_max_a {
-            return Err(ParamError { field: "control.commutation.hold_current_d_a", reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(commutation.hold_current_d_a), reason: Reason::AboveCurrentLimit });
         }
-        check!(positive("control.commutation.check_angle_rad", m.check_angle_rad));
-        check!(positive("control.commutation.check_time_s", m.check_time_s));
-        check!(positive("control.commutation.ratio_tolerance", m.ratio_tolerance));
-        check!(positive("control.commutation.blocked_ratio", m.blocked_ratio));
         if m.blocked_ratio >= 1.0 - m.ratio_tolerance {
-            return Err(ParamError { field: "control.commutation.blocked_ratio", reason: "must be below 1 - ratio_tolerance" });
+            return Err(ParamError { leaf: leaf!(commutation.blocked_ratio), reason: Reason::BlockedRatioTooHigh });
         }
-        check!(positive("control.commutation.timeout_s", m.timeout_s));
         let h = &self.homing;
         if h.direction != 1 && h.direction != -1 {
-            return Err(ParamError { field: "control.homing.direction", reason: "must be 1 or -1" });
+            return Err(ParamError { leaf: leaf!(homing.direction), reason: Reason::MustBeOneOrMinusOne });
         }
-        check!(positive("control.homing.speed_m_s", h.speed_m_s));
         if h.speed_m_s > self.trajectory.max_velocity_m_s {
-            return Err(ParamError { field: "control.homing.speed_m_s", reason: "must be <= trajectory.max_velocity_m_s" });
+            return Err(ParamError { leaf: leaf!(homing.speed_m_s), reason: Reason::AboveTrajectoryVelocity });
         }
-        check!(positive("control.homing.current_max_a", h.current_max_a));
         if h.current_max_a > l.current_max_a {
-            return Err(ParamError { field: "control.homing.current_max_a", reason: "must be <= limits.current_max_a" });
+            return Err(ParamError { leaf: leaf!(homing.current_max_a), reason: Reason::AboveCurrentLimit });
         }
-        check!(positive("control.homing.contact_following_m", h.contact_following_m));
-        check!(positive("control.homing.contact_speed_rad_s", h.contact_speed_rad_s));
-        check!(positive("control.homing.contact_time_s", h.contact_time_s));
         if !h.home_position_m.is_finite() {
-            return Err(ParamError { field: "control.homing.home_position_m", reason: "must be finite" });
+            return Err(ParamError { leaf: leaf!(homing.home_position_m), reason: Reason::MustBeFinite });
         }
-        check!(non_negative("control.homing.backoff_m", h.backoff_m));
-        check!(positive("control.homing.travel_max_m", h.travel_max_m));
-        check!(positive("control.homing.jog_speed_max_m_s", h.jog_speed_max_m_s));
         let p = &self.power_stage;
-        check!(positive("control.power_stage.temperature_foldback_c", p.temperature_foldback_c));
         if p.temperature_trip_c <= p.temperature_foldback_c || !p.temperature_trip_c.is_finite() {
-            return Err(ParamError { field: "control.power_stage.temperature_trip_c", reason: "must exceed temperature_foldback_c" });
+            return Err(ParamError { leaf: leaf!(power_stage.temperature_trip_c), reason: Reason::MustExceedTemperatureFoldback });
         }
-        check!(positive("control.power_stage.regen_bus_start_v", p.regen_bus_start_v));
         if p.regen_bus_max_v <= p.regen_bus_start_v || !p.regen_bus_max_v.is_finite() {
-            return Err(ParamError { field: "control.power_stage.regen_bus_max_v", reason: "must exceed regen_bus_start_v" });
+            return Err(ParamError { leaf: leaf!(power_stage.regen_bus_max_v), reason: Reason::MustExceedRegenStart });
         }
         if p.regen_bus_max_v > self.faults.bus_overvoltage_v {
             return Err(ParamError {
-                field: "control.power_stage.regen_bus_max_v",
-                reason: "must be <= faults.bus_overvoltage_v, or regeneration trips the drive first",
+                leaf: leaf!(power_stage.regen_bus_max_v),
+                reason: Reason::RegenAboveOvervoltage,
             });
         }
-        check!(non_negative("control.power_stage.regen_power_max_w", p.regen_power_max_w));
-        check!(positive("control.power_stage.emf_speed_mismatch_rad_s", p.emf_speed_mismatch_rad_s));
-        check!(positive("control.power_stage.emf_mismatch_time_s", p.emf_mismatch_time_s));
-        check!(positive("control.stream.period_max_s", self.stream.period_max_s));
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
-            return Err(ParamError { field: "control.stream.timeout_s", reason: "must be >= stream.period_max_s" });
+            return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
         }
         if self.stream.leg_index >= crate::protocol::can::LEGS as u32 {
-            return Err(ParamError { field: "control.stream.leg_index", reason: "must be 0..=5 (a slot of the CAN setpoint frame)" });
+            return Err(ParamError { leaf: leaf!(stream.leg_index), reason: Reason::NoSuchLegSlot });
         }
         Ok(())
     }

@@ -10,6 +10,7 @@
 use heapless::Vec;
 
 use super::messages::{CaptureRequest, CaptureStatus, TestSignal, Text, CAPTURE_CHUNK_MAX};
+use super::reason::Reason;
 use crate::controller::{ApplyError, Command, CommandError, CommandOutcome};
 use crate::params::{ControlParams, ValidatedParams};
 use crate::telemetry::Telemetry;
@@ -74,14 +75,14 @@ pub trait DriveAccess {
     ///
     /// The server checks the request's shape first (non-empty signals,
     /// decimation ≥ 1, pre-trigger ≤ samples, `count` ≤ chunk).
-    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text>;
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Reason>;
 
     /// Starts a test signal generated in the core (exact timing). `Ok` once
     /// it runs; `Err` with the reason when refused (wrong mode, not
     /// enabled, amplitude beyond a limit, another test running). The server
     /// checks first that every number is finite and durations and
     /// frequencies are positive.
-    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Text>;
+    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Reason>;
 }
 
 /// Where the parameter record lives: flash on the board
@@ -101,28 +102,28 @@ pub trait ParamStore {
 /// between two steps: the one mapping the simulator and the board's
 /// interrupt-side request handler share, so both answer alike.
 pub mod on_controller {
-    use super::{CaptureReply, Text};
+    use super::CaptureReply;
     use crate::controller::Controller;
     use crate::protocol::messages::{CaptureRequest, TestSignal, CAPTURE_CHUNK_MAX};
-    use crate::protocol::server::text;
+    use crate::protocol::Reason;
 
-    pub fn capture(c: &mut Controller, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+    pub fn capture(c: &mut Controller, request: &CaptureRequest) -> Result<CaptureReply, Reason> {
         match request {
-            CaptureRequest::Configure(config) => c.capture_configure(config).map(|()| CaptureReply::Ok).map_err(text),
-            CaptureRequest::Trigger => c.capture_trigger().map(|()| CaptureReply::Ok).map_err(text),
+            CaptureRequest::Configure(config) => c.capture_configure(config).map(|()| CaptureReply::Ok),
+            CaptureRequest::Trigger => c.capture_trigger().map(|()| CaptureReply::Ok),
             CaptureRequest::Status => Ok(CaptureReply::Status(c.capture_status())),
             CaptureRequest::Read { signal, start, count } => {
                 let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
                 let want = usize::from(*count).min(CAPTURE_CHUNK_MAX);
                 let out = buf.get_mut(..want).unwrap_or(&mut []);
-                let n = c.capture_read(*signal, *start, out).map_err(text)?;
-                let values = heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| text("capture chunk too long"))?;
+                let n = c.capture_read(*signal, *start, out)?;
+                let values = heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| Reason::ChunkTooLong)?;
                 Ok(CaptureReply::Data { signal: *signal, start: *start, values })
             }
         }
     }
 
-    pub fn test_signal(c: &mut Controller, signal: &TestSignal) -> Result<(), Text> {
-        c.start_test(*signal).map_err(text)
+    pub fn test_signal(c: &mut Controller, signal: &TestSignal) -> Result<(), Reason> {
+        c.start_test(*signal)
     }
 }

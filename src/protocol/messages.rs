@@ -11,14 +11,15 @@ use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
 use crate::controller::{CommandError, CommandOutcome};
+use super::reason::Reason;
 use crate::telemetry::Mode;
 
 /// Longest dotted parameter path
 /// (`control.drive_train.friction_feedforward_speed_rad_s` is 52; checked
 /// at compile time in `params.rs`).
 pub const PATH_MAX: usize = 64;
-/// Longest free text in a reply (an error's reason, a version string): the
-/// longest `ParamError` reason is 82.
+/// Longest free text in a reply (a version string, a storage error's
+/// reason; refusals carry a [`Reason`] code).
 pub const TEXT_MAX: usize = 96;
 /// Signals one capture records at most.
 pub const CAPTURE_SIGNALS_MAX: usize = 4;
@@ -57,13 +58,17 @@ pub enum Request {
     Status,
     /// Number of parameters (leaves of `control.*`).
     ParamCount,
-    /// The path and type of parameter `index` (0-based, stable for a schema).
-    ParamName { index: u16 },
-    ParamGet { path: Path },
+    /// Parameter `index`: 0-based, the path order of `ControlParams`'s
+    /// tree. The host resolves a dotted path (`control.speed_pi.kp`) to
+    /// its index, and an index to its path and type, with its own copy of
+    /// this crate (`protocol::params::index_of` and `name`) once `Info`
+    /// showed the drive's `params_schema_hash` equal to its own: the drive
+    /// holds no names (≈ 6 KB of the image).
+    ParamGet { index: u16 },
     /// Validated as a whole set (the field named on refusal) and applied
     /// between periods; gains apply bumplessly while running, structure
     /// (rates, pole pairs, encoder) only with the bridge off.
-    ParamSet { path: Path, value: Value },
+    ParamSet { index: u16, value: Value },
     /// Write the present parameters to flash. Refused while the bridge is on.
     Save,
     /// Read the saved parameters from flash and apply them. Refused while the
@@ -217,9 +222,8 @@ pub enum Reply {
     /// A command was taken; the outcome says if it was bounded.
     Command(CommandReport),
     ParamCount { count: u16 },
-    ParamName { index: u16, path: Path, kind: ValueKind },
     /// A parameter's value (after `ParamSet`: as applied).
-    Param { path: Path, value: Value },
+    Param { index: u16, value: Value },
     /// `Load`: what was applied.
     Loaded { from_flash: bool, note: Text },
     CaptureStatus(CaptureStatus),
@@ -232,6 +236,9 @@ pub struct Info {
     pub firmware_version: Text,
     pub git_hash: Text,
     pub schema_hash: [u8; 8],
+    /// `PARAMS_SCHEMA_HASH`: the parameters' layout, hence their indices,
+    /// paths and types. A host names parameters only when it is its own.
+    pub params_schema_hash: [u8; 8],
     pub board: Text,
     pub mode: Mode,
     pub faults: u32,
@@ -297,14 +304,17 @@ pub enum Error {
     /// The frame could not be read (see [`FrameError`]); its seq is unknown,
     /// so the reply carries seq 0.
     Frame(FrameError),
-    /// No parameter at this path.
-    UnknownPath { path: Path },
+    /// No parameter with this index.
+    UnknownParam { index: u16 },
     /// The value has another type than the parameter.
-    WrongType { path: Path, expected: ValueKind },
-    /// The set would not validate: the field and why (NaN, out of range…).
-    InvalidParam { field: Path, reason: Text },
+    WrongType { index: u16, expected: ValueKind },
+    /// The set would not validate: the field (its index; the host shows
+    /// its path) and why (NaN, out of range…).
+    InvalidParam { index: u16, reason: Reason },
     /// This parameter changes only with the bridge off.
-    NeedsBridgeOff { path: Path },
+    NeedsBridgeOff { index: u16 },
+    /// The telemetry request asks for fields or a rate the drive has not.
+    Telemetry { reason: Reason },
     /// Save or load refused while the bridge is on.
     BridgeOn,
     /// Flash storage failed, or held no usable record (what and why).
@@ -312,10 +322,10 @@ pub enum Error {
     /// The controller refused the command.
     Command(CommandError),
     /// A stream point beyond a limit, or a stream in the wrong state.
-    Stream { reason: Text },
+    Stream { reason: Reason },
     /// Capture or test request not possible now, or out of range.
-    Capture { reason: Text },
-    Test { reason: Text },
+    Capture { reason: Reason },
+    Test { reason: Reason },
     /// The drive is busy with a request of this kind (e.g. a save running).
     Busy,
 }

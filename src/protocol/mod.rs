@@ -20,11 +20,13 @@ pub mod drive;
 pub mod frame;
 pub mod messages;
 pub mod params;
+pub mod reason;
 pub mod server;
 
 pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
 pub use drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 pub use messages::*;
+pub use reason::Reason;
 pub use server::{Identity, Server};
 /// The fixed-capacity types in the messages, at the version they use.
 pub use heapless;

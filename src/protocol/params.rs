@@ -3,22 +3,28 @@
 //! `[control]` table, so a path here is a path there).
 //!
 //! The paths come from `miniconf::Tree`, derived on `ControlParams` and its
-//! sub-structs: adding a field adds its path, its index and its type
-//! without a table to keep in step. Values are read and written through
-//! `TreeAny` (a typed reference to the leaf), so no codec runs here.
+//! sub-structs: adding a field adds its path and index without a table of
+//! names to keep in step. A path is resolved to its leaf index through the
+//! tree's static schema (generic code over data), and the leaf is read and
+//! written through `params::leaves` (offset and type per index): the
+//! derived typed lookup (`TreeAny`, ≈ 5 KB in the image) is kept only as
+//! the reference the table is tested against ([`tree`]).
 
-use core::any::Any;
-
-use miniconf::{ConstPathIter, Internal, Schema, TreeAny, TreeSchema};
+use miniconf::{Internal, Schema, TreeSchema};
 
 use super::messages::{Path, Value, ValueKind};
-use crate::params::{ControlParams, HomingMethod};
+use crate::params::leaves::{self, LeafError};
+use crate::params::ControlParams;
 
 /// The table the paths start with.
 pub const PREFIX: &str = "control";
 
 /// Number of leaves (parameters) of `ControlParams`.
 pub const PARAM_COUNT: usize = ControlParams::SCHEMA.shape().count.get();
+
+// The leaf table has a row for every leaf of the tree (its order and types
+// are checked by a test, leaf by leaf).
+const _: () = assert!(leaves::LEAF_COUNT == PARAM_COUNT);
 
 // Every path fits a `Path` with its prefix.
 const _: () = assert!(PREFIX.len() + ControlParams::SCHEMA.max_length(".") <= super::messages::PATH_MAX);
@@ -34,98 +40,50 @@ pub enum PathError {
     NoSuchVariant,
 }
 
-/// The key cursor for `path`, if it starts with `control.`.
-fn keys(path: &str) -> Option<ConstPathIter<'_, '.'>> {
-    let rest = path.strip_prefix(PREFIX)?;
-    if !rest.starts_with('.') {
-        return None;
+/// The leaf index of `path` (`control.` then the tree's names), through
+/// the tree's static schema: generic code over data, not the derived
+/// per-struct lookup. `None` for an unknown path or a group.
+pub fn index_of(path: &str) -> Option<usize> {
+    let rest = path.strip_prefix(PREFIX)?.strip_prefix('.')?;
+    let mut schema = ControlParams::SCHEMA;
+    let mut index = 0usize;
+    for name in rest.split('.') {
+        let Some(Internal::Named(children)) = schema.internal() else {
+            // Past a leaf (or a numbered node, which `ControlParams` has none of).
+            return None;
+        };
+        let mut found = None;
+        for child in children.iter() {
+            if child.name() == name {
+                found = Some(child.schema());
+                break;
+            }
+            index = index.saturating_add(leaf_count(child.schema()));
+        }
+        schema = found?;
     }
-    // `root` skips the first segment (`control`, checked above).
-    Some(ConstPathIter::root(path))
-}
-
-fn kind_of(any: &dyn Any) -> Option<ValueKind> {
-    if any.is::<f32>() {
-        Some(ValueKind::F32)
-    } else if any.is::<u32>() {
-        Some(ValueKind::U32)
-    } else if any.is::<i32>() {
-        Some(ValueKind::I32)
-    } else if any.is::<bool>() {
-        Some(ValueKind::Bool)
-    } else if any.is::<HomingMethod>() {
-        Some(ValueKind::Variant)
-    } else {
-        None
-    }
-}
-
-fn value_of(any: &dyn Any) -> Option<Value> {
-    if let Some(v) = any.downcast_ref::<f32>() {
-        Some(Value::F32(*v))
-    } else if let Some(v) = any.downcast_ref::<u32>() {
-        Some(Value::U32(*v))
-    } else if let Some(v) = any.downcast_ref::<i32>() {
-        Some(Value::I32(*v))
-    } else if let Some(v) = any.downcast_ref::<bool>() {
-        Some(Value::Bool(*v))
-    } else {
-        any.downcast_ref::<HomingMethod>().map(|m| Value::Variant(homing_method_index(*m)))
-    }
-}
-
-const fn homing_method_index(m: HomingMethod) -> u8 {
-    match m {
-        HomingMethod::HardStop => 0,
-        HomingMethod::Switch => 1,
-    }
-}
-
-const fn homing_method(index: u8) -> Option<HomingMethod> {
-    match index {
-        0 => Some(HomingMethod::HardStop),
-        1 => Some(HomingMethod::Switch),
-        _ => None,
-    }
-}
-
-/// The leaf at `path` of `p`. Reads go through the mutable lookup too (on
-/// a copy): `ref_any_by_key` and `mut_any_by_key` are each ≈ 4.6 KB of
-/// derived code in the image, and one lookup serves all three uses.
-fn leaf<'a>(p: &'a mut ControlParams, path: &str) -> Result<&'a mut dyn Any, PathError> {
-    let keys = keys(path).ok_or(PathError::Unknown)?;
-    p.mut_any_by_key(keys).map_err(|_| PathError::Unknown)
+    schema.is_leaf().then_some(index)
 }
 
 /// The value at `path`.
 pub fn get(p: &ControlParams, path: &str) -> Result<Value, PathError> {
-    let mut copy = *p;
-    value_of(leaf(&mut copy, path)?).ok_or(PathError::Unknown)
+    index_of(path).and_then(|i| leaves::get(p, i)).ok_or(PathError::Unknown)
 }
 
 /// The type of the parameter at `path`.
 pub fn kind(path: &str) -> Result<ValueKind, PathError> {
-    let mut copy = ControlParams::DEFAULT;
-    kind_of(leaf(&mut copy, path)?).ok_or(PathError::Unknown)
+    index_of(path).and_then(leaves::leaf).map(|l| l.kind).ok_or(PathError::Unknown)
 }
 
 /// Writes `value` at `path` (no validation: that is the caller's, on the
 /// whole set). Nothing changes on an error.
 pub fn set(p: &mut ControlParams, path: &str, value: Value) -> Result<(), PathError> {
-    let any = leaf(p, path)?;
-    let expected = kind_of(any).ok_or(PathError::Unknown)?;
-    let wrong = PathError::WrongType(expected);
-    match value {
-        Value::F32(v) => *any.downcast_mut::<f32>().ok_or(wrong)? = v,
-        Value::U32(v) => *any.downcast_mut::<u32>().ok_or(wrong)? = v,
-        Value::I32(v) => *any.downcast_mut::<i32>().ok_or(wrong)? = v,
-        Value::Bool(v) => *any.downcast_mut::<bool>().ok_or(wrong)? = v,
-        Value::Variant(i) => {
-            let slot = any.downcast_mut::<HomingMethod>().ok_or(wrong)?;
-            *slot = homing_method(i).ok_or(PathError::NoSuchVariant)?;
-        }
-    }
-    Ok(())
+    let i = index_of(path).ok_or(PathError::Unknown)?;
+    leaves::set(p, i, value).map_err(|e| match e {
+        LeafError::Unknown => PathError::Unknown,
+        LeafError::WrongType(k) => PathError::WrongType(k),
+        LeafError::NoSuchVariant => PathError::NoSuchVariant,
+    })
 }
 
 /// Path and type of leaf `index` (0-based, depth-first in declaration
@@ -137,7 +95,7 @@ pub fn name(index: usize) -> Option<(Path, ValueKind)> {
     if !nth_leaf(ControlParams::SCHEMA, &mut left, &mut path) {
         return None;
     }
-    let kind = kind(&path).ok()?;
+    let kind = leaves::leaf(index)?.kind;
     Some((path, kind))
 }
 
@@ -172,4 +130,61 @@ fn nth_leaf(schema: &'static Schema, left: &mut usize, path: &mut Path) -> bool 
         return child.schema().is_leaf() || nth_leaf(child.schema(), left, path);
     }
     false
+}
+
+/// The same leaves through the tree's own typed lookup (`TreeAny`): the
+/// reference [`leaves`](crate::params::leaves) is tested against (every
+/// leaf set through one and read through the other). Not used by the
+/// drive, so not in the image.
+pub mod tree {
+    use core::any::Any;
+
+    use miniconf::{ConstPathIter, TreeAny};
+
+    use super::PREFIX;
+    use crate::params::{ControlParams, HomingMethod};
+    use crate::protocol::messages::Value;
+
+    fn leaf<'a>(p: &'a mut ControlParams, path: &str) -> Option<&'a mut dyn Any> {
+        path.strip_prefix(PREFIX)?.strip_prefix('.')?;
+        // `root` skips the first segment (`control`, checked above).
+        p.mut_any_by_key(ConstPathIter::<'_, '.'>::root(path)).ok()
+    }
+
+    /// The value at `path`, through the tree.
+    pub fn get(p: &ControlParams, path: &str) -> Option<Value> {
+        let mut copy = *p;
+        let any = leaf(&mut copy, path)?;
+        if let Some(v) = any.downcast_ref::<f32>() {
+            Some(Value::F32(*v))
+        } else if let Some(v) = any.downcast_ref::<u32>() {
+            Some(Value::U32(*v))
+        } else if let Some(v) = any.downcast_ref::<i32>() {
+            Some(Value::I32(*v))
+        } else if let Some(v) = any.downcast_ref::<bool>() {
+            Some(Value::Bool(*v))
+        } else {
+            any.downcast_ref::<HomingMethod>().map(|m| Value::Variant(*m as u8))
+        }
+    }
+
+    /// Writes `value` at `path` through the tree; false if the path or the
+    /// type does not match.
+    pub fn set(p: &mut ControlParams, path: &str, value: Value) -> bool {
+        let Some(any) = leaf(p, path) else { return false };
+        match value {
+            Value::F32(v) => any.downcast_mut::<f32>().map(|s| *s = v).is_some(),
+            Value::U32(v) => any.downcast_mut::<u32>().map(|s| *s = v).is_some(),
+            Value::I32(v) => any.downcast_mut::<i32>().map(|s| *s = v).is_some(),
+            Value::Bool(v) => any.downcast_mut::<bool>().map(|s| *s = v).is_some(),
+            Value::Variant(i) => {
+                let m = match i {
+                    0 => HomingMethod::HardStop,
+                    1 => HomingMethod::Switch,
+                    _ => return false,
+                };
+                any.downcast_mut::<HomingMethod>().map(|s| *s = m).is_some()
+            }
+        }
+    }
 }

@@ -13,10 +13,12 @@
 use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use super::frame::{decode, Feed, FrameReader};
 use super::messages::*;
-use super::params::{self as paths, PathError, PARAM_COUNT};
-use super::SCHEMA_HASH;
+use super::params::PARAM_COUNT;
+use crate::params::leaves::{self, LeafError};
+use super::reason::Reason;
+use super::{PARAMS_SCHEMA_HASH, SCHEMA_HASH};
 use crate::controller::{ApplyError, Command, CommandError};
-use crate::params::{record, ControlParams, ValidatedParams};
+use crate::params::{record, ControlParams, ParamError, ValidatedParams};
 use crate::telemetry::{Mode, Telemetry};
 
 /// Who the drive is, for `Info`.
@@ -52,46 +54,40 @@ pub struct Server {
 
 /// `s` as reply text, cut at [`TEXT_MAX`] (on a character boundary).
 pub fn text(s: &str) -> Text {
-    let mut t = Text::new();
-    for c in s.chars() {
-        if t.push(c).is_err() {
-            break;
-        }
+    // One copy of the bytes up to the cut (not a push per decoded
+    // character: a third of the code).
+    let mut end = s.len().min(TEXT_MAX);
+    while !s.is_char_boundary(end) {
+        end = end.saturating_sub(1);
     }
+    let mut t = Text::new();
+    let _ = t.push_str(s.get(..end).unwrap_or(""));
     t
 }
 
-fn path_of(s: &str) -> Path {
-    let mut p = Path::new();
-    for c in s.chars() {
-        if p.push(c).is_err() {
-            break;
-        }
-    }
-    p
+/// A validation refusal: the field by its leaf index (the host shows its
+/// path) and why.
+fn invalid_param(e: ParamError) -> Error {
+    Error::InvalidParam { index: e.leaf, reason: e.reason }
 }
 
-fn invalid(field: &str, reason: &str) -> Error {
-    Error::InvalidParam { field: path_of(field), reason: text(reason) }
-}
-
-fn stream_error(reason: &str) -> Error {
-    Error::Stream { reason: text(reason) }
+fn stream_error(reason: Reason) -> Error {
+    Error::Stream { reason }
 }
 
 /// Why the controller refused a stream point, for `Error::Stream`.
-fn stream_refusal(e: CommandError) -> &'static str {
+fn stream_refusal(e: CommandError) -> Reason {
     match e {
-        CommandError::Faulted(_) | CommandError::CauseStillPresent(_) => "refused: faults latched (ClearFaults)",
-        CommandError::NotRunning => "refused: drive not running (Enable)",
-        CommandError::NotDisabled => "refused: drive not disabled",
-        CommandError::Busy => "refused: a move is in progress",
-        CommandError::NotFinite => "refused: value not finite",
-        CommandError::OutOfRange => "refused: value out of range",
-        CommandError::BusLow => "refused: bus voltage low",
-        CommandError::NotCalibrated => "refused: currents not calibrated",
-        CommandError::NotCommutated => "refused: not commutated (Align)",
-        CommandError::NotHomed => "refused: not homed (Home)",
+        CommandError::Faulted(_) | CommandError::CauseStillPresent(_) => Reason::RefusedFaultsLatched,
+        CommandError::NotRunning => Reason::RefusedNotRunning,
+        CommandError::NotDisabled => Reason::RefusedNotDisabled,
+        CommandError::Busy => Reason::RefusedMoveInProgress,
+        CommandError::NotFinite => Reason::RefusedNotFinite,
+        CommandError::OutOfRange => Reason::RefusedOutOfRange,
+        CommandError::BusLow => Reason::RefusedBusLow,
+        CommandError::NotCalibrated => Reason::RefusedNotCalibrated,
+        CommandError::NotCommutated => Reason::RefusedNotCommutated,
+        CommandError::NotHomed => Reason::RefusedNotHomed,
     }
 }
 
@@ -142,11 +138,10 @@ impl Server {
             Request::Info => Ok(self.info(drive)),
             Request::Status => Ok(Self::status(drive)),
             Request::ParamCount => Ok(Reply::ParamCount { count: u16::try_from(PARAM_COUNT).unwrap_or(u16::MAX) }),
-            Request::ParamName { index } => Self::param_name(*index),
-            Request::ParamGet { path } => paths::get(&drive.params(), path)
-                .map(|value| Reply::Param { path: path.clone(), value })
-                .map_err(|_| Error::UnknownPath { path: path.clone() }),
-            Request::ParamSet { path, value } => Self::param_set(path, *value, drive),
+            Request::ParamGet { index } => leaves::get(&drive.params(), usize::from(*index))
+                .map(|value| Reply::Param { index: *index, value })
+                .ok_or(Error::UnknownParam { index: *index }),
+            Request::ParamSet { index, value } => Self::param_set(*index, *value, drive),
             Request::Save => Self::save(drive, store),
             Request::Load => self.load(drive, store),
             Request::Defaults => self.defaults(drive),
@@ -164,6 +159,7 @@ impl Server {
             firmware_version: text(self.identity.firmware_version),
             git_hash: text(self.identity.git_hash),
             schema_hash: SCHEMA_HASH,
+            params_schema_hash: PARAMS_SCHEMA_HASH,
             board: text(self.identity.board),
             mode: t.mode,
             faults: t.faults.bits(),
@@ -177,58 +173,31 @@ impl Server {
         Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.0, time_s: t.time_s, test_running: s.test_running })
     }
 
-    fn param_name(index: u16) -> Result<Reply, Error> {
-        match paths::name(usize::from(index)) {
-            Some((path, kind)) => Ok(Reply::ParamName { index, path, kind }),
-            None => {
-                // "control[65535]" is 14 characters: fits. Digits by hand,
-                // not `write!`: core::fmt would cost ≈ 2.5 KB of flash.
-                let mut digits = [0u8; 5];
-                let mut n = index;
-                let mut k = digits.len();
-                while k > 0 {
-                    k = k.wrapping_sub(1);
-                    if let Some(d) = digits.get_mut(k) {
-                        *d = b'0'.wrapping_add(n.checked_rem(10).unwrap_or(0) as u8);
-                    }
-                    n = n.checked_div(10).unwrap_or(0);
-                    if n == 0 {
-                        break;
-                    }
-                }
-                let mut path = path_of("control[");
-                for &d in digits.get(k..).unwrap_or(&[]) {
-                    let _ = path.push(char::from(d));
-                }
-                let _ = path.push(']');
-                Err(Error::UnknownPath { path })
-            }
-        }
-    }
-
     /// Staged on a copy, validated whole, then applied: nothing partial.
-    fn param_set<D: DriveAccess>(path: &Path, value: Value, drive: &mut D) -> Result<Reply, Error> {
+    fn param_set<D: DriveAccess>(index: u16, value: Value, drive: &mut D) -> Result<Reply, Error> {
         let present = drive.params();
         let mut staged = present;
-        if let Value::F32(v) = value {
-            if !v.is_finite() && paths::kind(path).is_ok() {
-                return Err(invalid(path, "must be finite"));
+        let i = usize::from(index);
+        if let (Value::F32(v), Some(_)) = (value, leaves::leaf(i)) {
+            if !v.is_finite() {
+                return Err(Error::InvalidParam { index, reason: Reason::MustBeFinite });
             }
         }
-        paths::set(&mut staged, path, value).map_err(|e| match e {
-            PathError::Unknown => Error::UnknownPath { path: path.clone() },
-            PathError::WrongType(expected) => Error::WrongType { path: path.clone(), expected },
-            PathError::NoSuchVariant => invalid(path, "no such variant"),
+        leaves::set(&mut staged, i, value).map_err(|e| match e {
+            LeafError::Unknown => Error::UnknownParam { index },
+            LeafError::WrongType(expected) => Error::WrongType { index, expected },
+            LeafError::NoSuchVariant => Error::InvalidParam { index, reason: Reason::NoSuchVariant },
         })?;
-        let validated = ValidatedParams::new(staged).map_err(|e| invalid(e.field, e.reason))?;
+        let validated = ValidatedParams::new(staged).map_err(invalid_param)?;
         if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
-            return Err(Error::NeedsBridgeOff { path: path.clone() });
+            return Err(Error::NeedsBridgeOff { index });
         }
         drive.apply_params(&validated).map_err(|e| match e {
-            ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { path: path.clone() },
+            ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { index },
+            ApplyError::NoAnswer => Error::Busy,
         })?;
-        let value = paths::get(&staged, path).map_err(|_| Error::UnknownPath { path: path.clone() })?;
-        Ok(Reply::Param { path: path.clone(), value })
+        let value = leaves::get(&staged, i).ok_or(Error::UnknownParam { index })?;
+        Ok(Reply::Param { index, value })
     }
 
     fn save<D: DriveAccess, S: ParamStore>(drive: &D, store: &mut S) -> Result<Reply, Error> {
@@ -286,10 +255,11 @@ impl Server {
         if !p.startup.commutation_known {
             p.encoder.electrical_offset_rad = drive.params().encoder.electrical_offset_rad;
         }
-        let set = ValidatedParams::new(p).map_err(|e| invalid(e.field, e.reason))?;
+        let set = ValidatedParams::new(p).map_err(invalid_param)?;
         self.last_point = None;
         drive.apply_params(&set).map_err(|e| match e {
-            ApplyError::NeedsBridgeOff { field } => Error::NeedsBridgeOff { path: path_of(field) },
+            ApplyError::NeedsBridgeOff { leaf } => Error::NeedsBridgeOff { index: leaf },
+            ApplyError::NoAnswer => Error::Busy,
         })
     }
 
@@ -322,23 +292,23 @@ impl Server {
         let p = drive.params();
         let t = drive.status().telemetry;
         if !sp.position_m.is_finite() {
-            return Err(stream_error("position_m not finite"));
+            return Err(stream_error(Reason::PositionNotFinite));
         }
         if !sp.velocity_m_s.is_finite() {
-            return Err(stream_error("velocity_m_s not finite"));
+            return Err(stream_error(Reason::VelocityNotFinite));
         }
         if sp.force_n.is_some_and(|f| !f.is_finite()) {
-            return Err(stream_error("force_n not finite"));
+            return Err(stream_error(Reason::ForceNotFinite));
         }
         if sp.position_m < p.limits.stroke_min_m {
-            return Err(stream_error("position_m below control.limits.stroke_min_m"));
+            return Err(stream_error(Reason::BelowStrokeMin));
         }
         if sp.position_m > p.limits.stroke_max_m {
-            return Err(stream_error("position_m beyond control.limits.stroke_max_m"));
+            return Err(stream_error(Reason::BeyondStrokeMax));
         }
         let v_max = p.trajectory.max_velocity_m_s;
         if sp.velocity_m_s.abs() > v_max {
-            return Err(stream_error("velocity_m_s beyond control.trajectory.max_velocity_m_s"));
+            return Err(stream_error(Reason::BeyondMaxVelocity));
         }
         let period_max = p.stream.period_max_s;
         let (from_m, interval_s) = match self.last_point {
@@ -346,7 +316,7 @@ impl Server {
                 let gap = t.time_s - last.time_s;
                 if gap > p.stream.timeout_s {
                     self.last_point = None;
-                    return Err(stream_error("gap beyond control.stream.timeout_s: the stream has ended"));
+                    return Err(stream_error(Reason::StreamGap));
                 }
                 (last.position_m, crate::math::clamp(gap, 0.0, period_max))
             }
@@ -356,7 +326,7 @@ impl Server {
         };
         let reach = v_max * (interval_s + STREAM_SLACK_PERIODS * p.position_period_s());
         if !((sp.position_m - from_m).abs() <= reach) {
-            return Err(stream_error("jump beyond control.trajectory.max_velocity_m_s since the last point"));
+            return Err(stream_error(Reason::StreamJump));
         }
         let cmd = Command::Stream { position_m: sp.position_m, velocity_m_s: sp.velocity_m_s, force_n: sp.force_n };
         match drive.command(cmd) {
@@ -373,14 +343,14 @@ impl Server {
 
     fn configure_telemetry<D: DriveAccess>(&mut self, fields: u32, rate_hz: u16, drive: &D) -> Result<Reply, Error> {
         if fields >> TelemetryField::COUNT != 0 {
-            return Err(invalid("telemetry.fields", "bits beyond the last TelemetryField"));
+            return Err(Error::Telemetry { reason: Reason::TelemetryFieldBits });
         }
         // PWM rate over the divider: exact for whole rates (1 / 0.001f32 is
         // 999.99994, which refused a 1 kHz request).
         let r = drive.params().rates;
         let position_rate_hz = r.pwm_frequency_hz / r.position_loop_divider as f32;
         if f32::from(rate_hz) > position_rate_hz {
-            return Err(invalid("telemetry.rate_hz", "above the position-loop rate (the record's rate)"));
+            return Err(Error::Telemetry { reason: Reason::TelemetryRateTooHigh });
         }
         self.telemetry_fields = fields;
         self.telemetry_rate_hz = rate_hz;
@@ -388,24 +358,24 @@ impl Server {
     }
 
     fn capture<D: DriveAccess>(c: &CaptureRequest, drive: &mut D) -> Result<Reply, Error> {
-        let refuse = |reason: &str| Err(Error::Capture { reason: text(reason) });
+        let refuse = |reason: Reason| Err(Error::Capture { reason });
         match c {
             CaptureRequest::Configure(cfg) => {
                 if cfg.signals.is_empty() {
-                    return refuse("no signals");
+                    return refuse(Reason::NoSignals);
                 }
                 if cfg.decimation == 0 {
-                    return refuse("decimation must be >= 1");
+                    return refuse(Reason::DecimationMustBePositive);
                 }
                 if cfg.samples == 0 {
-                    return refuse("samples must be >= 1");
+                    return refuse(Reason::SamplesMustBePositive);
                 }
                 if cfg.pre_trigger > cfg.samples {
-                    return refuse("pre_trigger beyond samples");
+                    return refuse(Reason::PreTriggerBeyondSamples);
                 }
             }
             CaptureRequest::Read { count, .. } if usize::from(*count) > CAPTURE_CHUNK_MAX => {
-                return refuse("count beyond CAPTURE_CHUNK_MAX");
+                return refuse(Reason::CountBeyondChunk);
             }
             _ => {}
         }
@@ -428,7 +398,7 @@ impl Server {
             }
         };
         if !ok {
-            return Err(Error::Test { reason: text("amplitude not finite, or a duration or frequency not > 0") });
+            return Err(Error::Test { reason: Reason::TestArguments });
         }
         drive.test_signal(t).map(|()| Reply::Ok).map_err(|reason| Error::Test { reason })
     }

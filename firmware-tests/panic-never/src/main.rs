@@ -98,9 +98,9 @@ fn mailbox() {
     }
 }
 
-/// The protocol on opaque bytes: `FrameReader` → `decode::<RequestFrame>`,
-/// replies and telemetry encoded; `apply_params` and the parameter record
-/// on opaque parameters.
+/// The protocol on opaque bytes: `Server::receive` (frame reader, decoding,
+/// every request handled against the controller), replies and telemetry
+/// encoded; `apply_params` and the parameter record on opaque parameters.
 mod protocol {
     use super::*;
     use servo_core::controller::ApplyError;
@@ -123,11 +123,11 @@ mod protocol {
         fn apply_params(&mut self, p: &ValidatedParams) -> Result<(), ApplyError> {
             self.0.apply_params(p)
         }
-        fn capture(&mut self, _: &CaptureRequest) -> Result<CaptureReply, Text> {
-            Err(server::text("no capture"))
+        fn capture(&mut self, _: &CaptureRequest) -> Result<CaptureReply, Reason> {
+            Err(Reason::NoCaptureStore)
         }
-        fn test_signal(&mut self, _: &TestSignal) -> Result<(), Text> {
-            Err(server::text("no test"))
+        fn test_signal(&mut self, _: &TestSignal) -> Result<(), Reason> {
+            Err(Reason::NotRunning)
         }
     }
 
@@ -154,24 +154,17 @@ mod protocol {
         for i in 0..64 {
             // SAFETY: as `opaque`; `i < 64`.
             let b = unsafe { read_volatile(addr_of!(BYTES[i])) };
-            // The parser: any bytes, any frame. (`Server::handle` itself is
-            // not linked here: miniconf's derived `TreeAny` ends its child
-            // match in `unreachable!()`, which no optimiser can prove dead
-            // for a run-time path; it is covered by the 10⁶-frame property
-            // test, host-sim/tests/protocol_fuzz.rs.)
-            let reply = match reader.push(b) {
-                Feed::Frame(bytes) => match decode::<RequestFrame>(bytes) {
-                    Ok(req) => Some(DriveFrame::Reply { seq: req.seq, reply: Reply::Ok }),
-                    Err(e) => Some(DriveFrame::Reply { seq: 0, reply: Reply::Error(Error::Frame(e)) }),
-                },
-                Feed::Dropped(e) => Some(DriveFrame::Reply { seq: 0, reply: Reply::Error(Error::Frame(e)) }),
-                Feed::Pending => None,
-            };
+            // The parser and the whole server: any bytes, any frame, any
+            // request (parameters by index through the leaf table, record,
+            // stream, capture, test). Linked since the drive no longer
+            // uses miniconf's derived `TreeAny` (its child match ends in
+            // `unreachable!()`); the 10⁶-frame property test covers the
+            // behaviour, host-sim/tests/protocol_fuzz.rs.
+            let reply = srv.receive(reader, b, &mut Drive(c), &mut Store);
             if let Some(reply) = reply {
                 sink(7, encode(&reply, &mut out).map_or(0, |f| f.len() as u32));
             }
         }
-        let _ = (&srv, Drive(c).status(), &mut Store);
         let t = srv.telemetry_frame(&c.telemetry());
         sink(7, encode(&DriveFrame::Telemetry(t), &mut out).map_or(0, |f| f.len() as u32));
         if let Ok(v) = ValidatedParams::new(opaque(addr_of!(PARAMS))) {
@@ -232,7 +225,7 @@ fn main() -> ! {
         _ => match Controller::try_new(params) {
             Ok(c) => c,
             Err(e) => {
-                sink(5, e.field.len() as u32);
+                sink(5, u32::from(e.leaf));
                 Controller::new(ControlParams::DEFAULT)
             }
         },

@@ -26,7 +26,7 @@ use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, Driv
 use servo_core::protocol::server::{Identity, Server};
 use servo_core::protocol::{
     self, CaptureRequest, DriveFrame, Error, Feed, FrameReader, Reply, Request, RequestFrame, TelemetryFrame, TestSignal,
-    Text, FRAME_MAX,
+    FRAME_MAX,
 };
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
 use std::io::{ErrorKind, Read, Write};
@@ -103,10 +103,10 @@ impl DriveAccess for Access<'_> {
     fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
         self.cl.controller.apply_params(params)
     }
-    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, servo_core::protocol::Reason> {
         on_controller::capture(&mut self.cl.controller, request)
     }
-    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Text> {
+    fn test_signal(&mut self, signal: &TestSignal) -> Result<(), servo_core::protocol::Reason> {
         on_controller::test_signal(&mut self.cl.controller, signal)
     }
 }

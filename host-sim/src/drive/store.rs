@@ -1,6 +1,6 @@
 //! The simulated drive's parameter store: one file standing in for the
 //! board's flash. It holds the core's record (`servo_core::params::record`:
-//! magic, parameter-schema hash, postcard body, CRC-32) byte for byte, so a
+//! magic, parameter-schema hash, one word per leaf, CRC-32) byte for byte, so a
 //! record from another layout or a corrupted one is refused as the board
 //! refuses it.
 

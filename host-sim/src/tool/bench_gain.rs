@@ -6,7 +6,7 @@
 
 use crate::config::RigConfig;
 use crate::drive::{DriveOptions, SimDrive};
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use servo_core::protocol::{DriveCommand, DriveFrame, Reply, Request, RequestFrame, Value};
 use servo_core::Mode;
 
@@ -43,11 +43,12 @@ fn move_with(rig: &RigConfig, change: Option<(&str, f32, u64)>, periods: u64) ->
     for k in 0..periods {
         if let Some((path, factor, at)) = change {
             if k == at {
-                let now = match ask(&mut d, 3, Request::ParamGet { path: path.try_into().map_err(|_| anyhow!("path"))? })? {
+                let index = super::param_index(path)?;
+                let now = match ask(&mut d, 3, Request::ParamGet { index })? {
                     Reply::Param { value: Value::F32(v), .. } => v,
                     r => bail!("ParamGet {path}: {r:?}"),
                 };
-                ask(&mut d, 4, Request::ParamSet { path: path.try_into().map_err(|_| anyhow!("path"))?, value: Value::F32(now * factor) })?;
+                ask(&mut d, 4, Request::ParamSet { index, value: Value::F32(now * factor) })?;
             }
         }
         d.step();

@@ -5,7 +5,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use servo_core::protocol::{
     self, DriveFrame, Error, Feed, FrameReader, Info, Reply, Request, RequestFrame, TelemetryFrame, FRAME_MAX,
-    SCHEMA_HASH,
+    PARAMS_SCHEMA_HASH, SCHEMA_HASH,
 };
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
@@ -190,7 +190,29 @@ pub fn check_schema(info: &Info) -> Result<()> {
             hex(&SCHEMA_HASH)
         );
     }
+    // Parameters cross by index; this tool turns paths into indices and
+    // back with its own copy of the parameter tree, valid only for the
+    // same layout.
+    if info.params_schema_hash != PARAMS_SCHEMA_HASH {
+        bail!(
+            "parameter schema mismatch: the drive ({}, firmware {} {}) has parameter layout {}, this tool {}; build both from the same ControlParams",
+            info.board,
+            info.firmware_version,
+            info.git_hash,
+            hex(&info.params_schema_hash),
+            hex(&PARAMS_SCHEMA_HASH)
+        );
+    }
     Ok(())
+}
+
+/// The dotted path of parameter `index` (from this tool's copy of the tree,
+/// the drive's own after `check_schema`).
+pub fn param_path(index: u16) -> String {
+    match protocol::params::name(usize::from(index)) {
+        Some((path, _)) => path.to_string(),
+        None => format!("control[{index}]"),
+    }
 }
 
 pub fn hex(b: &[u8]) -> String {
@@ -201,10 +223,11 @@ pub fn hex(b: &[u8]) -> String {
 pub fn describe(e: &Error) -> String {
     match e {
         Error::Frame(f) => format!("unreadable frame ({f:?})"),
-        Error::UnknownPath { path } => format!("no parameter `{path}`"),
-        Error::WrongType { path, expected } => format!("`{path}` takes a {expected:?}"),
-        Error::InvalidParam { field, reason } => format!("`{field}`: {reason}"),
-        Error::NeedsBridgeOff { path } => format!("`{path}` changes only with the bridge off"),
+        Error::UnknownParam { index } => format!("no parameter `{}`", param_path(*index)),
+        Error::WrongType { index, expected } => format!("`{}` takes a {expected:?}", param_path(*index)),
+        Error::InvalidParam { index, reason } => format!("`{}`: {reason}", param_path(*index)),
+        Error::NeedsBridgeOff { index } => format!("`{}` changes only with the bridge off", param_path(*index)),
+        Error::Telemetry { reason } => format!("telemetry: {reason}"),
         Error::BridgeOn => "refused while the bridge is on (disable first)".into(),
         Error::Storage { reason } => format!("storage: {reason}"),
         Error::Command(c) => format!("command refused: {c:?}"),

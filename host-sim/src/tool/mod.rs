@@ -287,6 +287,7 @@ pub fn info_json(c: &mut Client) -> Result<serde_json::Value> {
         "firmware_version": i.firmware_version.as_str(),
         "git_hash": i.git_hash.as_str(),
         "schema_hash": client::hex(&i.schema_hash),
+        "params_schema_hash": client::hex(&i.params_schema_hash),
         "mode": format!("{:?}", i.mode),
         "faults": servo_core::FaultSet(i.faults).names().collect::<Vec<_>>(),
         "pwm_frequency_hz": i.pwm_frequency_hz,
@@ -298,26 +299,30 @@ pub fn param_list(c: &mut Client) -> Result<Vec<(String, Value)>> {
         Reply::ParamCount { count } => count,
         r => bail!("unexpected {r:?}"),
     };
+    // The names are this tool's (the connect checked the layout is the
+    // drive's); the count is the drive's, as a second check.
+    if usize::from(n) != servo_core::protocol::params::PARAM_COUNT {
+        bail!("the drive has {n} parameters, this tool {}", servo_core::protocol::params::PARAM_COUNT);
+    }
     let mut out = Vec::new();
     for index in 0..n {
-        let path = match c.ask(Request::ParamName { index })? {
-            Reply::ParamName { path, .. } => path,
-            r => bail!("unexpected {r:?}"),
-        };
-        out.push((path.to_string(), param_get(c, &path)?));
+        let path = client::param_path(index);
+        out.push((path.clone(), param_get(c, &path)?));
     }
     Ok(out)
 }
 
-fn path_arg(p: &str) -> Result<servo_core::protocol::Path> {
+/// The index of parameter `p` (`control.` optional): the drive addresses
+/// parameters by index, the tool resolves the path.
+pub fn param_index(p: &str) -> Result<u16> {
     let full = params::full_path(p);
-    let mut s = servo_core::protocol::heapless::String::new();
-    s.push_str(&full).map_err(|_| anyhow!("path `{p}` longer than {} characters", servo_core::protocol::PATH_MAX))?;
-    Ok(s)
+    servo_core::protocol::params::index_of(&full)
+        .and_then(|i| u16::try_from(i).ok())
+        .ok_or_else(|| anyhow!("no parameter `{full}`"))
 }
 
 pub fn param_get(c: &mut Client, path: &str) -> Result<Value> {
-    match c.ask(Request::ParamGet { path: path_arg(path)? })? {
+    match c.ask(Request::ParamGet { index: param_index(path)? })? {
         Reply::Param { value, .. } => Ok(value),
         r => bail!("unexpected {r:?}"),
     }
@@ -337,7 +342,7 @@ pub fn param_set(c: &mut Client, path: &str, text: &str) -> Result<Value> {
 }
 
 pub fn param_set_value(c: &mut Client, path: &str, value: Value) -> Result<Value> {
-    match c.ask(Request::ParamSet { path: path_arg(path)?, value })? {
+    match c.ask(Request::ParamSet { index: param_index(path)?, value })? {
         Reply::Param { value, .. } => Ok(value),
         r => bail!("unexpected {r:?}"),
     }

@@ -102,7 +102,7 @@ fn stops_stream(r: &Reply) -> bool {
         Reply::Error(Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed)) => true,
         // The core server's wording for the same refusals.
         Reply::Error(Error::Stream { reason }) => {
-            ["faults latched", "not running", "not homed", "not commutated"].iter().any(|w| reason.contains(w))
+            ["faults latched", "not running", "not homed", "not commutated"].iter().any(|w| reason.text().contains(w))
         }
         _ => false,
     }

@@ -79,7 +79,7 @@ impl DriveAccess for MockDrive {
     fn apply_params(&mut self, p: &ValidatedParams) -> Result<(), ApplyError> {
         if !matches!(self.mode, Mode::Disabled | Mode::Fault) {
             if let Some(field) = self.params.bridge_off_change(p.get()) {
-                return Err(ApplyError::NeedsBridgeOff { field });
+                return Err(ApplyError::NeedsBridgeOff { leaf: field });
             }
         }
         self.params = *p.get();
@@ -87,7 +87,7 @@ impl DriveAccess for MockDrive {
         Ok(())
     }
 
-    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, Text> {
+    fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, servo_core::protocol::Reason> {
         self.captures += 1;
         match request {
             CaptureRequest::Read { signal, start, count } => {
@@ -98,7 +98,7 @@ impl DriveAccess for MockDrive {
         }
     }
 
-    fn test_signal(&mut self, _: &TestSignal) -> Result<(), Text> {
+    fn test_signal(&mut self, _: &TestSignal) -> Result<(), servo_core::protocol::Reason> {
         self.tests += 1;
         Ok(())
     }
@@ -156,6 +156,7 @@ pub fn ask(srv: &mut Server, drive: &mut MockDrive, store: &mut MemStore, reques
     })
 }
 
-pub fn path(s: &str) -> Path {
-    Path::try_from(s).unwrap()
+/// The leaf index of `s`, as the host tool resolves it.
+pub fn idx(s: &str) -> u16 {
+    servo_core::protocol::params::index_of(s).unwrap() as u16
 }

@@ -1,0 +1,141 @@
+//! Why a parameter, stream point, capture or test request was refused: one
+//! code per reason on the wire, its text on the host.
+//!
+//! The drive sends [`Reason`] (one byte); the host tool, which links this
+//! same crate, shows [`Reason::text`]. The texts are what the drive used
+//! to send, word for word, so a user reads the same "what and why"; only
+//! the image no longer carries them (≈ 3 KB of strings and their copying
+//! into replies). `Reason::text` is never called on the board (the log
+//! prints the variant's name through defmt, whose strings are not in flash).
+
+use postcard_schema::Schema;
+use serde::{Deserialize, Serialize};
+
+macro_rules! reasons {
+    ($($(#[$doc:meta])* $name:ident = $text:literal,)*) => {
+        /// A refusal's reason (see the module documentation).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        pub enum Reason {
+            $($(#[$doc])* $name,)*
+        }
+
+        impl Reason {
+            /// The reason as the user reads it.
+            pub const fn text(self) -> &'static str {
+                match self {
+                    $(Self::$name => $text,)*
+                }
+            }
+        }
+    };
+}
+
+reasons! {
+    // ---- a parameter's value (`ControlParams::validate`, `ParamSet`) ----
+    MustBeFinite = "must be finite",
+    MustBePositive = "must be > 0",
+    MustBeNonNegative = "must be >= 0",
+    MustBeAtLeastOne = "must be >= 1",
+    MustBeAtMostOne = "must be <= 1",
+    MustBeBelowOne = "must be < 1",
+    MustBeFiniteAboveOne = "must be finite and > 1",
+    MustBeOneOrMinusOne = "must be 1 or -1",
+    MultipleOfSpeedDivider = "must be a multiple of speed_loop_divider",
+    CountsPerRevTooHigh = "must be <= 32768",
+    MustExceedStrokeMin = "must exceed stroke_min_m",
+    TripBelowCurrentLimit = "must be >= limits.current_max_a, or normal operation trips",
+    MustExceedBusUndervoltage = "must exceed bus_undervoltage_v",
+    MarginNotBelowOvertravel = "must be below stroke_overtravel_m, or a controlled stop ends in a trip",
+    StopDecelerationTooLow = "must be >= trajectory.max_acceleration_m_s2, or planned moves trip the soft limits",
+    AboveObserverShiftMax = "must be <= faults.observer_shift_max_m",
+    AboveCurrentLimit = "must be <= limits.current_max_a",
+    AbovePeakRating = "above the motor or inverter peak rating (control.ratings)",
+    AboveInverterPeakRating = "above control.ratings.inverter_peak_current_a",
+    AboveBusRating = "above control.ratings.bus_max_voltage_v",
+    AboveSpeedRating = "above control.ratings.speed_max_rad_s",
+    BlockedRatioTooHigh = "must be below 1 - ratio_tolerance",
+    AboveTrajectoryVelocity = "must be <= trajectory.max_velocity_m_s",
+    MustExceedTemperatureFoldback = "must exceed temperature_foldback_c",
+    MustExceedRegenStart = "must exceed regen_bus_start_v",
+    RegenAboveOvervoltage = "must be <= faults.bus_overvoltage_v, or regeneration trips the drive first",
+    TimeoutBelowPeriodMax = "must be >= stream.period_max_s",
+    NoSuchLegSlot = "must be 0..=5 (a slot of the CAN setpoint frame)",
+    NoSuchVariant = "no such variant",
+    TelemetryFieldBits = "telemetry.fields: bits beyond the last TelemetryField",
+    TelemetryRateTooHigh = "telemetry.rate_hz: above the position-loop rate (the record's rate)",
+
+    // ---- test signals (`Controller::start_test`, the server's checks) ----
+    FaultsLatched = "faults latched",
+    NotRunning = "not running (enable first)",
+    TestRunning = "a test is already running",
+    MoveInProgress = "a move or stream is in progress",
+    BrakeOpening = "the brake is still opening",
+    DurationOutOfRange = "duration not in (0, 60] s",
+    AmplitudeNotFinite = "amplitude not finite",
+    CurrentStepBeyondLimit = "current step beyond limits.current_max_a",
+    CurrentStepPlusHoldBeyondLimit = "current step plus hold current beyond the current limit",
+    NotHomedStrokeUnknown = "not homed: the stroke is unknown",
+    SpeedStepBeyondLimit = "speed step beyond limits.speed_max_rad_s",
+    SpeedStepLeavesStroke = "speed step would leave the stroke",
+    DistanceNotFinite = "distance not finite",
+    PositionStepBeyondFollowingError = "position step not below faults.position_following_error_m",
+    PositionStepBeyondStroke = "position step beyond the stroke",
+    ChirpArgumentNotFinite = "chirp argument not finite",
+    ChirpAmplitudeNegative = "chirp amplitude negative",
+    ChirpFrequencyNotPositive = "chirp frequency not positive",
+    ChirpAboveNyquist = "chirp frequency not below the loop's Nyquist",
+    ChirpPlusHoldBeyondLimit = "chirp plus hold current beyond the current limit",
+    ChirpBeyondSpeedLimit = "chirp beyond limits.speed_max_rad_s",
+    ChirpBeyondFollowingError = "chirp not below faults.position_following_error_m",
+    ChirpBeyondStroke = "chirp beyond the stroke",
+    TestArguments = "amplitude not finite, or a duration or frequency not > 0",
+
+    // ---- capture (`capture`, the server's checks, the board's link) ----
+    NoCaptureStore = "no capture store attached",
+    NoSignals = "no signals",
+    TooManySignals = "more than 4 signals",
+    DecimationZero = "decimation 0",
+    TooFewSamples = "fewer than 2 samples",
+    CaptureBufferTooSmall = "samples x signals beyond the 4096-value buffer",
+    PreTriggerNotBelowSamples = "pre-trigger not below samples",
+    FullScaleNotPositive = "a signal's full scale is not positive (ratings, stroke)",
+    CaptureNotArmed = "capture not armed",
+    CaptureNotDone = "capture not done",
+    NoSuchSignal = "no such signal in this capture",
+    StartBeyondRecord = "start beyond the record",
+    DecimationMustBePositive = "decimation must be >= 1",
+    SamplesMustBePositive = "samples must be >= 1",
+    PreTriggerBeyondSamples = "pre_trigger beyond samples",
+    CountBeyondChunk = "count beyond CAPTURE_CHUNK_MAX",
+    MoreSignalsThanTheBoardRecords = "capture: more signals than the board records",
+    ChunkTooLong = "capture chunk too long",
+    /// The board's link: the PWM interrupt did not answer in time.
+    NoAnswer = "(link: the PWM interrupt did not answer)",
+
+    // ---- stream points (the server's checks, the controller's refusal) ----
+    RefusedFaultsLatched = "refused: faults latched (ClearFaults)",
+    RefusedNotRunning = "refused: drive not running (Enable)",
+    RefusedNotDisabled = "refused: drive not disabled",
+    RefusedMoveInProgress = "refused: a move is in progress",
+    RefusedNotFinite = "refused: value not finite",
+    RefusedOutOfRange = "refused: value out of range",
+    RefusedBusLow = "refused: bus voltage low",
+    RefusedNotCalibrated = "refused: currents not calibrated",
+    RefusedNotCommutated = "refused: not commutated (Align)",
+    RefusedNotHomed = "refused: not homed (Home)",
+    PositionNotFinite = "position_m not finite",
+    VelocityNotFinite = "velocity_m_s not finite",
+    ForceNotFinite = "force_n not finite",
+    BelowStrokeMin = "position_m below control.limits.stroke_min_m",
+    BeyondStrokeMax = "position_m beyond control.limits.stroke_max_m",
+    BeyondMaxVelocity = "velocity_m_s beyond control.trajectory.max_velocity_m_s",
+    StreamGap = "gap beyond control.stream.timeout_s: the stream has ended",
+    StreamJump = "jump beyond control.trajectory.max_velocity_m_s since the last point",
+}
+
+impl core::fmt::Display for Reason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.text())
+    }
+}
