@@ -2,9 +2,10 @@
 //!
 //! Fixed rather than adaptive so a run is bit-for-bit repeatable and its
 //! cost predictable; the step is bounded by `PlantParams::max_step_s()`
-//! (≥ 4 steps per PWM period) and `params_check` refuses a step that does
-//! not resolve the model's fastest rate. Inputs (inverter state, load) are
-//! held constant across a step: the caller splits steps at every change.
+//! (one step per PWM period on the shipped rig) and `params_check`
+//! refuses a step that does not resolve the model's fastest rate. Inputs
+//! (inverter state, load) are held constant across a step: the caller
+//! splits steps at every change.
 
 /// One RK4 step of `ẋ = f(x)` with step `h`.
 #[inline]
