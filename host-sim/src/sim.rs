@@ -122,7 +122,9 @@ impl ClosedLoop {
             self.period_peak_current_a = peak_now(&self.plant);
             return;
         };
-        let n = self.plant.params().integration.substeps_per_pwm_period.max(1);
+        // The comparator acts within microseconds: check it at least twice
+        // a period, however long the plant's own RK4 steps may be.
+        let n = self.plant.params().integration.substeps_per_pwm_period.max(2);
         let h = self.pwm_period_s / f64::from(n);
         self.period_peak_current_a = 0.0;
         for _ in 0..n {

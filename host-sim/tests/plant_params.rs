@@ -110,20 +110,23 @@ fn other_tables_in_the_rig_file_are_left_alone() {
 
 #[test]
 fn integration_step_must_resolve_the_fastest_dynamics() {
-    let (field, reason) = refusal(&rig_with("substeps_per_pwm_period = 2", "substeps_per_pwm_period = 1"));
+    let (field, reason) = refusal(&rig_with("substeps_per_pwm_period = 1", "substeps_per_pwm_period = 0"));
     assert_eq!(field, "plant.integration.substeps_per_pwm_period");
-    assert!(reason.contains(">= 2"), "{reason}");
+    assert!(reason.contains(">= 1"), "{reason}");
 
     // A friction regularisation ten times sharper makes the screw's
-    // tanh region too steep for a 25 µs RK4 step.
+    // tanh region too steep for a 50 µs RK4 step.
     let (field, reason) =
         refusal(&rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5"));
     assert_eq!(field, "plant.integration.substeps_per_pwm_period");
     assert!(reason.contains("screw friction"), "{reason}");
 
     // ... which more substeps fix.
-    let text = rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5")
-        .replacen("substeps_per_pwm_period = 2\n", "substeps_per_pwm_period = 32\n", 1);
+    let text = rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5").replacen(
+        "substeps_per_pwm_period = 1\n",
+        "substeps_per_pwm_period = 32\n",
+        1,
+    );
     if let Err(e) = PlantParams::from_toml_str(&text) {
         panic!("32 substeps should do: {e}");
     }

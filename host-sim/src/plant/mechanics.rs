@@ -17,8 +17,8 @@
 
 use super::deformation::{AxialWarmStart, Compliance};
 use super::effects::EffectDynamics;
-use super::friction::{RodFriction, ScrewFriction};
 use super::frames::{self, SinCosCache};
+use super::friction::{RodFriction, ScrewFriction};
 use super::inverter::{self, Drive};
 use super::motor::Motor;
 use super::params::PlantParams;
@@ -84,6 +84,29 @@ pub struct Eval {
     pub screw_position: f64,
 }
 
+/// What `Model::state_terms` computes: the right-hand side's terms that
+/// depend on the state alone (not on the step's `Inputs`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StateTerms {
+    pub sin_e: f64,
+    pub cos_e: f64,
+    pub motor_torque: f64,
+    pub cogging_torque: f64,
+    pub torsion_spring_torque: f64,
+    pub coupling_torque: f64,
+    pub torsional_compliance: f64,
+    /// dx_s/dθ_s.
+    pub ratio: f64,
+    pub axial_spring_force: f64,
+    pub axial_force: f64,
+    pub screw_friction_torque: f64,
+    pub rod_friction_force: f64,
+    pub stop_force: f64,
+    pub stop_elastic_force: f64,
+    pub stop_penetration: f64,
+    pub screw_position: f64,
+}
+
 /// The model's constants, prepared once from `PlantParams`.
 #[derive(Clone, Debug)]
 pub struct Model {
@@ -145,7 +168,13 @@ impl Model {
 
     /// Axial load from gravity along the cylinder and an external force.
     pub fn load_force_n(&self, tilt_rad: f64, external_force_n: f64) -> f64 {
-        self.mass * self.gravity * tilt_rad.sin() + external_force_n + self.fx.load_offset
+        self.load_force_from_sin(tilt_rad.sin(), external_force_n)
+    }
+
+    /// `load_force_n` with sin(tilt) given.
+    #[inline]
+    pub fn load_force_from_sin(&self, sin_tilt: f64, external_force_n: f64) -> f64 {
+        self.mass * self.gravity * sin_tilt + external_force_n + self.fx.load_offset
     }
 
     /// Motor-side position `x0 + L θ_m/2π`.
@@ -175,32 +204,29 @@ impl Model {
     /// `Compliance::axial_force_warm`) and the electrical angle's sin/cos.
     #[inline]
     pub fn evaluate_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut WarmStart) -> Eval {
-        let (i_d, i_q, th_m, w_m, th_s, w_s, x, v) =
-            (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
+        let t = self.state_terms(s, warm);
+        self.finish(s, &t, inp)
+    }
+
+    /// The part of the right-hand side that depends on the state alone:
+    /// everything but the inverter voltages, the brake and the load, which
+    /// are held through a step and may change between periods. Split out
+    /// so the state record's evaluation at a period's end can serve as the
+    /// next step's first stage (`finish` with the new inputs), the force
+    /// inversion and friction laws not repeated.
+    #[inline(always)]
+    pub fn state_terms(&self, s: &StateVec, warm: &mut WarmStart) -> StateTerms {
+        let (th_m, w_m, th_s, w_s, x, v) = (s[THETA_M], s[OMEGA_M], s[THETA_S], s[OMEGA_S], s[X_ROD], s[V_ROD]);
         let (sin_e, cos_e) = warm.angle.sin_cos(self.motor.pole_pairs * th_m);
-        let (u_d, u_q) = match (inp.drive, inp.open_phase) {
-            (Drive::Pwm(duty), None) => {
-                let u = inverter::pwm_phase_voltages(duty, inp.bus_v);
-                frames::abc_to_dq(self.fx.dead_time(u, i_d, i_q, sin_e, cos_e, inp.bus_v), sin_e, cos_e)
-            }
-            (Drive::Pwm(duty), Some(k)) => {
-                let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
-                frames::abc_to_dq(inverter::pwm_phase_voltages_open(duty, inp.bus_v, e_abc, k), sin_e, cos_e)
-            }
-            (Drive::Diodes(_), _) => {
-                let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
-                inverter::dq_voltages(&inp.drive, inp.bus_v, e_abc, sin_e, cos_e)
-            }
-        };
-        let (di_d, di_q) = self.motor.current_derivatives(u_d, u_q, i_d, i_q, w_m);
-        let motor_torque = self.motor.torque_n_m(i_d, i_q);
+        let motor_torque = self.motor.torque_n_m(s[I_D], s[I_Q]);
 
         let torsional_compliance = self.compliance.torsional_compliance_rad_per_n_m(x);
         let torsion_spring_torque = (th_m - th_s) / torsional_compliance;
         let coupling_torque = torsion_spring_torque + self.c_rot * (w_m - w_s);
 
         // `ratio` = dx_s/dθ_s: L/2π, unless a lead error bends the thread.
-        let (screw_position, ratio) = self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
+        let (screw_position, ratio) =
+            self.fx.thread(self.origin_m + self.metres_per_rad * th_s, self.metres_per_rad, th_s);
         let axial_spring_force = match self.fx.engaged_deflection(screw_position - x) {
             Some(d) => self.compliance.axial_force_warm(d, x, &mut warm.axial),
             None => {
@@ -216,28 +242,15 @@ impl Model {
         let screw_friction_torque = self.screw_friction.torque_n_m(w_s, axial_force) + self.fx.screw_friction_n_m(w_s);
         let rod_friction_force = self.rod_friction.force_n(v);
         let (stop_force, stop_elastic_force, stop_penetration) = self.stop_force(x, v);
-
-        let deriv = [
-            di_d,
-            di_q,
-            w_m,
-            (motor_torque - coupling_torque - self.b_m * w_m - self.fx.cogging_n_m(th_m) + inp.brake.torque_n_m(th_m, w_m))
-                * self.inv_j_m,
-            w_s,
-            (coupling_torque - ratio * axial_force - screw_friction_torque) * self.inv_j_s,
-            v,
-            (axial_force - inp.load_force_n - rod_friction_force + stop_force) * self.inv_mass,
-        ];
-        Eval {
-            deriv,
+        StateTerms {
             sin_e,
             cos_e,
-            u_d,
-            u_q,
             motor_torque,
+            cogging_torque: self.fx.cogging_n_m(th_m),
             torsion_spring_torque,
             coupling_torque,
             torsional_compliance,
+            ratio,
             axial_spring_force,
             axial_force,
             screw_friction_torque,
@@ -247,6 +260,87 @@ impl Model {
             stop_penetration,
             screw_position,
         }
+    }
+
+    /// `evaluate_warm`'s derivative alone, for the RK4 stages: none of the
+    /// rest of `Eval` is assembled.
+    #[inline(always)]
+    pub fn deriv_warm(&self, s: &StateVec, inp: &Inputs, warm: &mut WarmStart) -> StateVec {
+        let t = self.state_terms(s, warm);
+        self.deriv_from(s, &t, inp)
+    }
+
+    /// The derivative at state `s` from its `state_terms` and the inputs
+    /// held through the step.
+    #[inline(always)]
+    pub fn deriv_from(&self, s: &StateVec, t: &StateTerms, inp: &Inputs) -> StateVec {
+        let (u_d, u_q) = self.dq_voltages(s, t, inp);
+        self.derivative(s, t, u_d, u_q, inp)
+    }
+
+    /// The right-hand side at state `s` from its `state_terms` and the
+    /// inputs held through the step.
+    #[inline]
+    pub fn finish(&self, s: &StateVec, t: &StateTerms, inp: &Inputs) -> Eval {
+        let (u_d, u_q) = self.dq_voltages(s, t, inp);
+        Eval {
+            deriv: self.derivative(s, t, u_d, u_q, inp),
+            sin_e: t.sin_e,
+            cos_e: t.cos_e,
+            u_d,
+            u_q,
+            motor_torque: t.motor_torque,
+            torsion_spring_torque: t.torsion_spring_torque,
+            coupling_torque: t.coupling_torque,
+            torsional_compliance: t.torsional_compliance,
+            axial_spring_force: t.axial_spring_force,
+            axial_force: t.axial_force,
+            screw_friction_torque: t.screw_friction_torque,
+            rod_friction_force: t.rod_friction_force,
+            stop_force: t.stop_force,
+            stop_elastic_force: t.stop_elastic_force,
+            stop_penetration: t.stop_penetration,
+            screw_position: t.screw_position,
+        }
+    }
+
+    /// The inverter's dq voltages at the state (PWM, a phase open, or the
+    /// diodes conducting).
+    #[inline(always)]
+    fn dq_voltages(&self, s: &StateVec, t: &StateTerms, inp: &Inputs) -> (f64, f64) {
+        let (i_d, i_q, w_m) = (s[I_D], s[I_Q], s[OMEGA_M]);
+        let (sin_e, cos_e) = (t.sin_e, t.cos_e);
+        match (inp.drive, inp.open_phase) {
+            (Drive::Pwm(duty), None) => {
+                let u = inverter::pwm_phase_voltages(duty, inp.bus_v);
+                frames::abc_to_dq(self.fx.dead_time(u, i_d, i_q, sin_e, cos_e, inp.bus_v), sin_e, cos_e)
+            }
+            (Drive::Pwm(duty), Some(k)) => {
+                let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
+                frames::abc_to_dq(inverter::pwm_phase_voltages_open(duty, inp.bus_v, e_abc, k), sin_e, cos_e)
+            }
+            (Drive::Diodes(_), _) => {
+                let e_abc = self.motor.back_emf_abc(w_m, sin_e, cos_e);
+                inverter::dq_voltages(&inp.drive, inp.bus_v, e_abc, sin_e, cos_e)
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn derivative(&self, s: &StateVec, t: &StateTerms, u_d: f64, u_q: f64, inp: &Inputs) -> StateVec {
+        let (i_d, i_q, th_m, w_m, w_s, v) = (s[I_D], s[I_Q], s[THETA_M], s[OMEGA_M], s[OMEGA_S], s[V_ROD]);
+        let (di_d, di_q) = self.motor.current_derivatives(u_d, u_q, i_d, i_q, w_m);
+        [
+            di_d,
+            di_q,
+            w_m,
+            (t.motor_torque - t.coupling_torque - self.b_m * w_m - t.cogging_torque + inp.brake.torque_n_m(th_m, w_m))
+                * self.inv_j_m,
+            w_s,
+            (t.coupling_torque - t.ratio * t.axial_force - t.screw_friction_torque) * self.inv_j_s,
+            v,
+            (t.axial_force - inp.load_force_n - t.rod_friction_force + t.stop_force) * self.inv_mass,
+        ]
     }
 
     /// End stops: a stiff spring-damper that can only push the rod back into

@@ -33,7 +33,7 @@ pub use mechanics::{EnergyAudit, StateVec};
 pub use params::PlantParams;
 pub use params_check::{LoadError, ParamError};
 
-use mechanics::{Inputs, Model, I_D, I_Q, OMEGA_M, OMEGA_S, THETA_M, THETA_S, V_ROD, X_ROD};
+use mechanics::{Inputs, Model, StateTerms, I_D, I_Q, OMEGA_M, OMEGA_S, THETA_M, THETA_S, V_ROD, X_ROD};
 
 /// True plant quantities (f64) after the latest `advance`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -96,10 +96,16 @@ pub struct Plant {
     x: StateVec,
     time_s: f64,
     tilt_rad: f64,
+    /// sin(tilt), kept with it: the load and the load cell need it every
+    /// period and the tilt changes at most once a position-loop period.
+    sin_tilt: f64,
     external_force_n: f64,
     bus_v: f64,
     drive: Drive,
     warm: mechanics::WarmStart,
+    /// The state record's right-hand-side terms at the period's end, kept
+    /// to serve as the next step's first RK4 stage (see `first_stage`).
+    record_terms: Option<RecordTerms>,
     max_step_s: f64,
     duty_saturation_count: u64,
     /// A phase disconnected from the inverter (fault injection).
@@ -135,11 +141,13 @@ impl Plant {
             bus_v: params.inverter.nominal_bus_voltage_v,
             external_force_n: params.load.initial_external_force_n,
             tilt_rad: tilt,
+            sin_tilt: tilt.sin(),
             model,
             x: [0.0; mechanics::N],
             time_s: 0.0,
             drive: Drive::Pwm([0.5; 3]),
             warm: mechanics::WarmStart::default(),
+            record_terms: None,
             duty_saturation_count: 0,
             open_phase: None,
             brake: brake::Brake::new(&params.brake),
@@ -159,7 +167,7 @@ impl Plant {
     /// current (`u_q = R i_q`); a controller starting from zero integrators
     /// will let the load sag until its loops pick it up.
     pub fn set_initial_state(&mut self, motor_angle_rad: f64, tilt_rad: f64) {
-        self.tilt_rad = tilt_rad;
+        self.set_tilt_rad(tilt_rad);
         let load = self.model.load_force_n(tilt_rad, self.external_force_n);
         self.x = self.model.equilibrium(motor_angle_rad, load);
         self.warm = mechanics::WarmStart { axial: deformation::AxialWarmStart::from_force(load), ..Default::default() };
@@ -198,11 +206,14 @@ impl Plant {
         if e.thermal_strain_per_s != 0.0 || e.load_offset_n != 0.0 || e.load_disturbance_n != 0.0 {
             self.model.fx.thermal_strain = e.thermal_strain(self.time_s);
             self.model.fx.load_offset = e.load_offset_n + e.load_disturbance(self.time_s);
+            // The thread's strain is a state term: the record's are stale.
+            self.record_terms = None;
         }
     }
 
     pub fn set_tilt_rad(&mut self, tilt_rad: f64) {
         self.tilt_rad = tilt_rad;
+        self.sin_tilt = tilt_rad.sin();
     }
 
     /// Extra axial load on the rod; positive opposes extension.
@@ -254,7 +265,7 @@ impl Plant {
         self.bus_v = bus_voltage_v;
         let duty = duty.map(|d| self.saturate_duties(d));
         self.update_effects();
-        let load = self.model.load_force_n(self.tilt_rad, self.external_force_n);
+        let load = self.load_force_n();
         self.drive = self.drive_for(duty, bus_voltage_v);
         if duration_s > 0.0 {
             let steps = ((duration_s / self.max_step_s) * (1.0 - 1e-12)).ceil().max(1.0);
@@ -268,9 +279,10 @@ impl Plant {
                     open_phase: self.open_phase,
                     brake: self.brake.torque_law(),
                 };
+                let k1 = self.first_stage(&inputs);
                 let model = &self.model;
                 let guess = &mut self.warm;
-                self.x = integrator::rk4_step(&self.x, h, |s| model.evaluate_warm(s, &inputs, guess).deriv);
+                self.x = integrator::rk4_step_from(&self.x, h, &k1, |s| model.deriv_warm(s, &inputs, guess));
                 match (self.drive, self.open_phase) {
                     // The open phase is `Leg::Open` in the diode pattern.
                     (Drive::Diodes(legs), _) => self.enforce_diode_blocking(legs),
@@ -284,6 +296,21 @@ impl Plant {
         // The state record shows the conduction pattern at the end.
         self.drive = self.drive_for(duty, bus_voltage_v);
         self.refresh_state();
+    }
+
+    /// The first RK4 stage f(x) of a step. At a period's start the state
+    /// record has just evaluated the state terms at this very x (same
+    /// warm start), so only the input-dependent part is redone with this
+    /// step's drive, brake and load: the same numbers, bit for bit, as a
+    /// full evaluation, without a second force inversion.
+    fn first_stage(&mut self, inputs: &Inputs) -> StateVec {
+        match self.record_terms.take() {
+            Some(r) if r.x == self.x => {
+                self.warm = r.warm;
+                self.model.deriv_from(&self.x, &r.terms, inputs)
+            }
+            _ => self.model.deriv_warm(&self.x, inputs, &mut self.warm),
+        }
     }
 
     /// The drive mode for the next step: PWM, or whichever diodes conduct
@@ -359,7 +386,7 @@ impl Plant {
 
     /// Axial load `m g sin(tilt) + F_ext` at the present tilt and force.
     pub fn load_force_n(&self) -> f64 {
-        self.model.load_force_n(self.tilt_rad, self.external_force_n)
+        self.model.load_force_from_sin(self.sin_tilt, self.external_force_n)
     }
 
     /// q-axis current that holds axial force `F` at rest: `L F/(2π · 1.5 p ψ_f)`.
@@ -427,7 +454,9 @@ impl Plant {
     fn refresh_state(&mut self) {
         let inputs = self.inputs();
         let mut guess = self.warm;
-        let e = self.model.evaluate_warm(&self.x, &inputs, &mut guess);
+        let terms = self.model.state_terms(&self.x, &mut guess);
+        let e = self.model.finish(&self.x, &terms, &inputs);
+        self.record_terms = Some(RecordTerms { x: self.x, terms, warm: guess });
         let m = &self.model;
         let x = &self.x;
         let motor_side = m.motor_side_position_m(x[THETA_M]);
@@ -456,7 +485,7 @@ impl Plant {
             u_d_v: e.u_d,
             u_q_v: e.u_q,
             load_force_n: inputs.load_force_n,
-            load_cell_force_n: m.payload_mass * (m.gravity * self.tilt_rad.sin() + accel) + self.external_force_n,
+            load_cell_force_n: m.payload_mass * (m.gravity * self.sin_tilt + accel) + self.external_force_n,
             rod_acceleration_m_s2: accel,
             tilt_rad: self.tilt_rad,
             external_force_n: self.external_force_n,
@@ -466,4 +495,13 @@ impl Plant {
             duty_saturation_count: self.duty_saturation_count,
         };
     }
+}
+
+/// `Plant::refresh_state`'s evaluation: the state it was made at, its
+/// state terms and the warm start they left.
+#[derive(Clone, Copy, Debug)]
+struct RecordTerms {
+    x: StateVec,
+    terms: StateTerms,
+    warm: mechanics::WarmStart,
 }

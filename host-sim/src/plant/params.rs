@@ -293,7 +293,7 @@ impl Default for PlantParams {
                 load_cell_enabled: true,
                 load_cell_noise_n: 2.0,
             },
-            integration: IntegrationParams { pwm_frequency_hz: 20_000.0, substeps_per_pwm_period: 2 },
+            integration: IntegrationParams { pwm_frequency_hz: 20_000.0, substeps_per_pwm_period: 1 },
             brake: super::brake::BrakeParams::default(),
         }
     }

@@ -185,22 +185,22 @@ impl PlantParams {
 
         let it = &self.integration;
         positive("plant.integration.pwm_frequency_hz", it.pwm_frequency_hz)?;
-        if it.substeps_per_pwm_period < 2 {
-            return Err(ParamError::new(
-                "plant.integration.substeps_per_pwm_period",
-                "must be >= 2 (the comparator break of `sim.rs` is checked after every RK4 step, so at least twice a PWM period)",
-            ));
+        if it.substeps_per_pwm_period < 1 {
+            return Err(ParamError::new("plant.integration.substeps_per_pwm_period", "must be >= 1"));
         }
         self.check_step_resolves_dynamics()
     }
 
     /// The fastest rates of the model (1/s), by name. RK4 is stable to
-    /// |λ·h| ≈ 2.8 on the negative real axis. Oscillatory modes (and the
+    /// |λ·h| ≈ 2.785 on the negative real axis. Oscillatory modes (and the
     /// electrical pole) must have |λ·h| ≤ 1 so they are also accurate; a
     /// purely dissipative relaxation (damping, friction regularisation) only
-    /// |λ·h| ≤ 2 (`step_limit`): its transient is gone within a step or two
-    /// whatever RK4 makes of it, and its end point (the steady force) is
-    /// exact.
+    /// |λ·h| ≤ 2.5 (`step_limit`): RK4's amplification 1 + z + … + z⁴/24
+    /// has no real root, so such a transient decays monotonically (by 0.65
+    /// per step at 2.5, 10 % inside the stability bound) and its end point
+    /// (the steady force) is exact. The load-dependent rates are taken at
+    /// three times the full weight, so at working loads they sit well
+    /// below their limit.
     pub fn fastest_rates_per_s(&self) -> Vec<(&'static str, f64)> {
         let r = self.metres_per_rad();
         let m = self.moving_mass_kg();
@@ -269,10 +269,10 @@ impl PlantParams {
     }
 }
 
-/// Largest |λ·h| allowed for a rate of `fastest_rates_per_s`: 2 for the
+/// Largest |λ·h| allowed for a rate of `fastest_rates_per_s`: 2.5 for the
 /// dissipative relaxations, 1 for everything else.
-fn step_limit(name: &str) -> f64 {
-    if name.ends_with("damping") || name.ends_with("regularisation") { 2.0 } else { 1.0 }
+pub fn step_limit(name: &str) -> f64 {
+    if name.ends_with("damping") || name.ends_with("regularisation") { 2.5 } else { 1.0 }
 }
 
 /// Degrees to radians, for the TOML's human-friendly tilt.

@@ -7,6 +7,7 @@
 pub mod dynamics;
 pub mod geometry;
 pub mod kinematics;
+mod leg_threads;
 pub mod plots;
 pub mod pose_error;
 pub mod run;

@@ -15,8 +15,8 @@
 //!   references and not the rods).
 //! - Each leg's plant carries the upper-leg mass (Table 3, 13 kg) on its rod
 //!   instead of the single-leg rig's payload; the plate and payload act only
-//!   through the forces. Legs run on two threads (std; rayon is not among
-//!   the crates this build has), synchronised every position-loop period.
+//!   through the forces. Legs run on two threads (`leg_threads`),
+//!   synchronised every position-loop period.
 
 use super::dynamics::PoseState;
 use super::kinematics::{Platform, Pose};
@@ -26,6 +26,8 @@ use crate::sim::ClosedLoop;
 use anyhow::{anyhow, bail, Result};
 use nalgebra::Vector6;
 use servo_core::{Command, CommandOutcome, Controller};
+
+pub(super) use super::leg_threads::Worker;
 
 /// One leg: its closed loop and what it was last told.
 pub(super) struct LegLoop {
@@ -153,55 +155,6 @@ pub(super) fn new_leg(s: &LegSetup, p: &Platform, i: usize, start: &Pose, force_
         .command(Command::SetCompensation { enabled: compensation })
         .map_err(|e| anyhow!("leg {}: compensation refused: {e:?}", i + 1))?;
     Ok(Box::new(LegLoop { cl }))
-}
-
-fn step_chunk(chunk: &mut [Box<LegLoop>], periods: u64) -> Result<()> {
-    for leg in chunk {
-        for _ in 0..periods {
-            let tel = leg.cl.step();
-            if !tel.faults.is_empty() {
-                bail!("fault {:?} latched at t = {:.4} s", tel.faults, leg.cl.time_s());
-            }
-        }
-    }
-    Ok(())
-}
-
-type Batch = (Vec<Box<LegLoop>>, u64);
-
-/// A second thread that lives through the run: it is handed legs 4–6 (the
-/// boxes move, not the legs) for each position-loop period and hands them
-/// back, while the calling thread steps legs 1–3. A thread spawned per
-/// period would cost a good part of the period's work.
-pub(super) struct Worker {
-    to: std::sync::mpsc::Sender<Batch>,
-    from: std::sync::mpsc::Receiver<(Vec<Box<LegLoop>>, Result<()>)>,
-}
-
-impl Worker {
-    pub(super) fn spawn() -> Self {
-        let (to, rx) = std::sync::mpsc::channel::<Batch>();
-        let (tx, from) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for (mut legs, periods) in rx {
-                let r = step_chunk(&mut legs, periods);
-                if tx.send((legs, r)).is_err() {
-                    break;
-                }
-            }
-        });
-        Self { to, from }
-    }
-
-    /// Advances every leg by `periods` PWM periods, three per thread.
-    pub(super) fn step(&self, legs: &mut Vec<Box<LegLoop>>, periods: u64) -> Result<()> {
-        let back = legs.split_off(3);
-        self.to.send((back, periods)).map_err(|_| anyhow!("the leg thread is gone"))?;
-        let ra = step_chunk(legs, periods);
-        let (back, rb) = self.from.recv().map_err(|_| anyhow!("the leg thread is gone"))?;
-        legs.extend(back);
-        ra.and(rb)
-    }
 }
 
 /// From rest at l_0 (every leg retracted, Table 3's initial length), moves

@@ -167,17 +167,20 @@ pub fn peak_leg_rate(p: &Platform, traj: &Trajectory, ramp_s: f64) -> f64 {
 }
 
 /// The amplitude scale ≤ 1 that brings the peak leg rate to `v_max_m_s`
-/// (rate is nearly linear in amplitude; two corrections settle it).
-pub fn fit_scale(p: &Platform, traj: &Trajectory, ramp_s: f64, v_max_m_s: f64) -> f64 {
-    let mut k: f64 = 1.0;
+/// (rate is nearly linear in amplitude; two corrections settle it), with
+/// the peak leg rates at scale 1 and at that scale (each pass samples the
+/// whole trajectory: the run reports these rather than sample it again).
+pub fn fit_scale(p: &Platform, traj: &Trajectory, ramp_s: f64, v_max_m_s: f64) -> (f64, f64, f64) {
+    let full = peak_leg_rate(p, traj, ramp_s);
+    let (mut k, mut peak): (f64, f64) = (1.0, full);
     for _ in 0..3 {
-        let peak = peak_leg_rate(p, &scaled(traj, k), ramp_s);
         if peak <= v_max_m_s {
             break;
         }
         k *= 0.995 * v_max_m_s / peak;
+        peak = peak_leg_rate(p, &scaled(traj, k), ramp_s);
     }
-    k.min(1.0)
+    (k.min(1.0), full, peak)
 }
 
 fn check_options(o: &StreamOptions, traj: &Trajectory) -> Result<()> {
@@ -202,9 +205,12 @@ pub fn run_stream(p: &Platform, rig: &RigConfig, full: &Trajectory, o: &StreamOp
     check_options(o, full)?;
     let started = std::time::Instant::now();
     let v_max = f64::from(rig.control.trajectory.max_velocity_m_s);
-    let scale = o.amplitude_scale.unwrap_or_else(|| fit_scale(p, full, o.ramp_s, SPEED_MARGIN * v_max));
+    let (scale, peak_full, peak_streamed) = match o.amplitude_scale {
+        Some(k) => (k, peak_leg_rate(p, full, o.ramp_s), peak_leg_rate(p, &scaled(full, k), o.ramp_s)),
+        None => fit_scale(p, full, o.ramp_s, SPEED_MARGIN * v_max),
+    };
     let traj = &scaled(full, scale);
-    let peak_rates = (peak_leg_rate(p, full, o.ramp_s), peak_leg_rate(p, traj, o.ramp_s));
+    let peak_rates = (peak_full, peak_streamed);
     let lmin = p.geometry.leg_min_length_m;
     let l0 = p.geometry.leg_initial_length_m;
     let stream_s = o.duration_s.unwrap_or(traj.duration_s);
