@@ -136,6 +136,13 @@ impl TestRun {
         self.phase == TestPhase::Running && matches!(self.signal, TestSignal::CurrentStep { .. } | TestSignal::SpeedStep { .. })
     }
 
+    /// A current step or current chirp is running: the current reference
+    /// is the test's, not the loops'.
+    #[inline(always)]
+    pub fn drives_current(&self) -> bool {
+        self.phase == TestPhase::Running && self.target() == ChirpTarget::Current
+    }
+
     /// Which loop's tick the test starts on.
     pub fn target(&self) -> ChirpTarget {
         match self.signal {
