@@ -10,7 +10,8 @@
 //! protection rests on: rates, motor, screw lead, encoder, stroke, fault
 //! thresholds, brake, thermal model, ratings, the start-up steps and the
 //! power stage. Changing these under a turning motor would move the frame
-//! the rod is held in or a trip threshold mid-motion.
+//! the rod is held in or a trip threshold mid-motion. Also the speed loop's
+//! setpoint weight: a change would step the q current by `kp Δb ω_ref`.
 
 use super::ControlParams;
 

@@ -118,6 +118,10 @@ impl ControlParams {
         check!(non_negative("control.current_pi.ki", self.current_pi.ki));
         check!(positive("control.speed_pi.kp", self.speed_pi.kp));
         check!(non_negative("control.speed_pi.ki", self.speed_pi.ki));
+        check!(non_negative("control.speed_setpoint_weight", self.speed_setpoint_weight));
+        if self.speed_setpoint_weight > 2.0 {
+            return Err(ParamError { field: "control.speed_setpoint_weight", reason: "must be <= 2" });
+        }
         check!(non_negative("control.torque_filter_hz", self.torque_filter_hz));
         check!(positive("control.position_kp_per_s", self.position_kp_per_s));
         let e = &self.encoder;
