@@ -41,6 +41,9 @@ pub struct DesignPlant {
     /// Optional axial (load-on-spring) mode: the motor's speed sees
     /// `1/(J s) · (s²/ω_a² + 2ζ_a s/ω_a + 1)/(s²/ω_r² + 2ζ_r s/ω_r + 1)`.
     pub rod_mode: Option<RodMode>,
+    /// The speed PI's setpoint weight `b` (`control.speed_setpoint_weight`):
+    /// the gains' structure, kept here so that every response below uses it.
+    pub speed_setpoint_weight: f64,
 }
 
 /// The load mass on the drive train's axial stiffness, seen at the motor.
@@ -84,6 +87,7 @@ impl DesignPlant {
             pll_kp: f64::from(p.encoder.pll_kp_per_s),
             pll_ki: f64::from(p.encoder.pll_ki_per_s2),
             rod_mode: None,
+            speed_setpoint_weight: f64::from(p.speed_setpoint_weight),
         }
     }
     pub fn t_pwm(&self) -> f64 {
@@ -164,15 +168,19 @@ impl DesignPlant {
     pub fn speed_ol(&self, cur: (f64, f64), spd: (f64, f64), w: f64) -> C {
         self.speed_pi(spd.0, spd.1, w) * self.speed_forward(cur, w) * self.pll(w)
     }
+    /// The speed PI from the reference: `kp b + ki T z/(z − 1)`.
+    pub fn speed_pi_reference(&self, kp: f64, ki: f64, w: f64) -> C {
+        self.speed_pi(kp * self.speed_setpoint_weight, ki, w)
+    }
     /// Measured (PLL) speed over the speed reference: what a speed chirp's
     /// FRF measures.
     pub fn speed_cl(&self, cur: (f64, f64), spd: (f64, f64), w: f64) -> C {
-        let l = self.speed_ol(cur, spd, w);
-        l / (l + 1.0)
+        let f = self.speed_pi_reference(spd.0, spd.1, w) * self.speed_forward(cur, w) * self.pll(w);
+        f / (self.speed_ol(cur, spd, w) + 1.0)
     }
     /// True speed over the speed reference.
     pub fn speed_cl_true(&self, cur: (f64, f64), spd: (f64, f64), w: f64) -> C {
-        let f = self.speed_pi(spd.0, spd.1, w) * self.speed_forward(cur, w);
+        let f = self.speed_pi_reference(spd.0, spd.1, w) * self.speed_forward(cur, w);
         f / (self.speed_ol(cur, spd, w) + 1.0)
     }
     pub fn position_ol(&self, cur: (f64, f64), spd: (f64, f64), kp: f64, w: f64) -> C {
@@ -224,28 +232,34 @@ pub struct Margins {
 
 pub fn margins(l: impl Fn(f64) -> C, f0: f64, f1: f64) -> Margins {
     let n = 4000;
+    let f: Vec<f64> = (0..=n).map(|k| f0 * (f1 / f0).powf(k as f64 / n as f64)).collect();
+    let v: Vec<C> = f.iter().map(|&f| l(TAU * f)).collect();
+    margins_from_samples(&f, &v)
+}
+
+/// [`margins`] of an open loop given at the frequencies `f` (Hz, rising).
+pub fn margins_from_samples(f: &[f64], l: &[C]) -> Margins {
     let mut out = Margins::default();
-    let mut prev: Option<(f64, C)> = None;
     let mut ms = 0.0f64;
-    for k in 0..=n {
-        let f = f0 * (f1 / f0).powf(k as f64 / n as f64);
-        let v = l(TAU * f);
+    for k in 0..f.len().min(l.len()) {
+        let v = l[k];
         ms = ms.max(1.0 / (v + 1.0).norm());
-        if let Some((fp, vp)) = prev {
-            if out.crossover_hz.is_none() && vp.norm() >= 1.0 && v.norm() < 1.0 {
-                let a = (vp.norm().ln()) / (vp.norm().ln() - v.norm().ln());
-                let x = vp + (v - vp) * a;
-                out.crossover_hz = Some(fp + a * (f - fp));
-                out.phase_margin_deg = Some(180.0 + (-(-x.arg().to_degrees()).rem_euclid(360.0)));
-            }
-            if out.phase_crossover_hz.is_none() && (vp.im < 0.0) != (v.im < 0.0) && v.re < 0.0 && vp.re < 0.0 {
-                let a = vp.im / (vp.im - v.im);
-                let x = vp + (v - vp) * a;
-                out.phase_crossover_hz = Some(fp + a * (f - fp));
-                out.gain_margin_db = Some(-20.0 * x.norm().log10());
-            }
+        if k == 0 {
+            continue;
         }
-        prev = Some((f, v));
+        let (fp, vp, f) = (f[k - 1], l[k - 1], f[k]);
+        if out.crossover_hz.is_none() && vp.norm() >= 1.0 && v.norm() < 1.0 {
+            let a = (vp.norm().ln()) / (vp.norm().ln() - v.norm().ln());
+            let x = vp + (v - vp) * a;
+            out.crossover_hz = Some(fp + a * (f - fp));
+            out.phase_margin_deg = Some(180.0 + (-(-x.arg().to_degrees()).rem_euclid(360.0)));
+        }
+        if out.phase_crossover_hz.is_none() && (vp.im < 0.0) != (v.im < 0.0) && v.re < 0.0 && vp.re < 0.0 {
+            let a = vp.im / (vp.im - v.im);
+            let x = vp + (v - vp) * a;
+            out.phase_crossover_hz = Some(fp + a * (f - fp));
+            out.gain_margin_db = Some(-20.0 * x.norm().log10());
+        }
     }
     out.sensitivity_peak_db = 20.0 * ms.log10();
     out
@@ -276,7 +290,9 @@ pub struct LoopDesign {
     /// The design model's closed-loop −3 dB frequency.
     pub model_bandwidth_hz: f64,
     pub margins: Margins,
-    /// Overshoot of the design model's step response (see `model::predict`).
+    /// What the user asked (None: whatever the plain design gives).
+    pub asked_overshoot_pct: Option<f64>,
+    /// Overshoot of the design model's step response (`model::step_response`).
     pub model_overshoot_pct: f64,
     pub rule: String,
 }
