@@ -52,8 +52,19 @@ pub fn current(p: &DesignPlant, a: &Asked) -> Result<(f64, f64, Margins, f64)> {
         );
     }
     let (kp, ki, m, bw) = design::design_current(p, a.current_bw_hz)?;
-    let os = overshoot(p, &Gains { current: (kp, ki), speed: (0.0, 0.0), position_kp: 0.0 }, StepKind::Current, 0.01);
-    if enforced() && (os - a.current_overshoot_pct).abs() > overshoot_tolerance_pct(a.current_overshoot_pct) {
+    let os = overshoot(
+        p,
+        &Gains {
+            current: (kp, ki),
+            speed: (0.0, 0.0),
+            position_kp: 0.0,
+        },
+        StepKind::Current,
+        0.01,
+    );
+    if enforced()
+        && (os - a.current_overshoot_pct).abs() > overshoot_tolerance_pct(a.current_overshoot_pct)
+    {
         bail!(
             "current-loop overshoot {} % refused: the pole-zero current PI gives {os:.1} % at {} Hz, and this tool offers no other",
             a.current_overshoot_pct,
@@ -74,17 +85,36 @@ pub struct SpeedDesign {
 }
 
 fn robust(m: &Margins) -> bool {
-    m.gain_margin_db.is_none_or(|g| g >= GAIN_MARGIN_MIN_DB) && m.sensitivity_peak_db <= SENSITIVITY_PEAK_MAX_DB
+    m.gain_margin_db.is_none_or(|g| g >= GAIN_MARGIN_MIN_DB)
+        && m.sensitivity_peak_db <= SENSITIVITY_PEAK_MAX_DB
 }
 
 /// The speed PI for `bw_hz` at `pm_deg` with setpoint weight `b`.
-fn speed_at(p: &DesignPlant, cur: (f64, f64), bw_hz: f64, pm_deg: f64, b: f64) -> Result<SpeedDesign> {
+fn speed_at(
+    p: &DesignPlant,
+    cur: (f64, f64),
+    bw_hz: f64,
+    pm_deg: f64,
+    b: f64,
+) -> Result<SpeedDesign> {
     let mut q = p.clone();
     q.speed_setpoint_weight = b;
     let (kp, ki, margins, model_bw_hz) = design::design_speed(&q, cur, bw_hz, pm_deg)?;
-    let g = Gains { current: cur, speed: (kp, ki), position_kp: 0.0 };
-    let model_overshoot_pct = overshoot(&q, &g, StepKind::Speed, model::speed_step_duration_s(bw_hz));
-    Ok(SpeedDesign { kp, ki, weight: b, margins, model_bw_hz, model_overshoot_pct })
+    let g = Gains {
+        current: cur,
+        speed: (kp, ki),
+        position_kp: 0.0,
+    };
+    let model_overshoot_pct =
+        overshoot(&q, &g, StepKind::Speed, model::speed_step_duration_s(bw_hz));
+    Ok(SpeedDesign {
+        kp,
+        ki,
+        weight: b,
+        margins,
+        model_bw_hz,
+        model_overshoot_pct,
+    })
 }
 
 /// Highest speed bandwidth (plain PI at `pm_deg`) that stays robust on the
@@ -106,13 +136,22 @@ pub fn speed_bw_max_hz(p: &DesignPlant, cur: (f64, f64), from_hz: f64, pm_deg: f
 pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign> {
     let refuse = |why: String| -> anyhow::Error {
         let mode = p.rod_mode.map_or(String::new(), |m| {
-            format!(" (the rod's axial mode: anti-resonance {:.1} Hz, resonance {:.1} Hz)", m.antiresonance_hz, m.resonance_hz)
+            format!(
+                " (the rod's axial mode: anti-resonance {:.1} Hz, resonance {:.1} Hz)",
+                m.antiresonance_hz, m.resonance_hz
+            )
         });
         let max = speed_bw_max_hz(p, cur, a.speed_bw_hz, a.phase_margin_deg)
-            .map_or("none found".into(), |f| format!("{f:.1} Hz at {}° of phase margin", a.phase_margin_deg));
-        anyhow::anyhow!("speed-loop bandwidth {} Hz refused: {why}{mode}; the highest this rig carries: {max}", a.speed_bw_hz)
+            .map_or("none found".into(), |f| {
+                format!("{f:.1} Hz at {}° of phase margin", a.phase_margin_deg)
+            });
+        anyhow::anyhow!(
+            "speed-loop bandwidth {} Hz refused: {why}{mode}; the highest this rig carries: {max}",
+            a.speed_bw_hz
+        )
     };
-    let plain = speed_at(p, cur, a.speed_bw_hz, a.phase_margin_deg, 1.0).map_err(|e| refuse(format!("{e:#}")))?;
+    let plain = speed_at(p, cur, a.speed_bw_hz, a.phase_margin_deg, 1.0)
+        .map_err(|e| refuse(format!("{e:#}")))?;
     if enforced() && !robust(&plain.margins) {
         return Err(refuse(format!(
             "gain margin {:.1} dB, sensitivity peak {:.1} dB on the design model (need ≥ {GAIN_MARGIN_MIN_DB} dB and ≤ {SENSITIVITY_PEAK_MAX_DB} dB)",
@@ -120,17 +159,28 @@ pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign>
             plain.margins.sensitivity_peak_db
         )));
     }
-    let Some(target) = a.speed_overshoot_pct else { return Ok(plain) };
+    let Some(target) = a.speed_overshoot_pct else {
+        return Ok(plain);
+    };
     // Overshoot rises with b. The asked margin first, then the others of
     // 45…80°: the robust pair (margin, b) with the least sensitivity peak.
     let mut best: Option<SpeedDesign> = None;
     let mut range = (f64::INFINITY, 0.0f64);
     let pms = std::iter::once(a.phase_margin_deg).chain((0..8).map(|k| 45.0 + 5.0 * k as f64));
     for pm in pms {
-        let at = |b: f64| speed_at(p, cur, a.speed_bw_hz, pm, b).ok().filter(|d| !enforced() || robust(&d.margins));
-        let grid: Vec<(f64, SpeedDesign)> = (0..=10).filter_map(|k| at(0.2 * k as f64).map(|d| (0.2 * k as f64, d))).collect();
+        let at = |b: f64| {
+            speed_at(p, cur, a.speed_bw_hz, pm, b)
+                .ok()
+                .filter(|d| !enforced() || robust(&d.margins))
+        };
+        let grid: Vec<(f64, SpeedDesign)> = (0..=10)
+            .filter_map(|k| at(0.2 * k as f64).map(|d| (0.2 * k as f64, d)))
+            .collect();
         for g in &grid {
-            range = (range.0.min(g.1.model_overshoot_pct), range.1.max(g.1.model_overshoot_pct));
+            range = (
+                range.0.min(g.1.model_overshoot_pct),
+                range.1.max(g.1.model_overshoot_pct),
+            );
         }
         for w in grid.windows(2) {
             let (lo, hi) = (&w[0].1, &w[1].1);
@@ -150,7 +200,10 @@ pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign>
                 }
                 d = m;
             }
-            if best.as_ref().is_none_or(|b| d.margins.sensitivity_peak_db < b.margins.sensitivity_peak_db) {
+            if best
+                .as_ref()
+                .is_none_or(|b| d.margins.sensitivity_peak_db < b.margins.sensitivity_peak_db)
+            {
                 best = Some(d);
             }
             break;
@@ -171,7 +224,12 @@ pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign>
 
 /// The position P for the ask; its overshoot is set by its bandwidth against
 /// the speed loop's, so an overshoot ask must be what that gives.
-pub fn position(p: &DesignPlant, cur: (f64, f64), spd: (f64, f64), a: &Asked) -> Result<(f64, Margins, f64)> {
+pub fn position(
+    p: &DesignPlant,
+    cur: (f64, f64),
+    spd: (f64, f64),
+    a: &Asked,
+) -> Result<(f64, Margins, f64)> {
     if enforced() && a.position_bw_hz > 0.35 * a.speed_bw_hz {
         bail!(
             "position-loop bandwidth {} Hz refused: a P position loop needs its speed loop ≥ 3× faster (speed {} Hz)",
@@ -180,9 +238,20 @@ pub fn position(p: &DesignPlant, cur: (f64, f64), spd: (f64, f64), a: &Asked) ->
         );
     }
     let (k, m, bw) = design::design_position(p, cur, spd, a.position_bw_hz)?;
-    let g = Gains { current: cur, speed: spd, position_kp: k };
-    let os = overshoot(p, &g, StepKind::Position, model::position_step_duration_s(a.position_bw_hz));
-    if enforced() && (os - a.position_overshoot_pct).abs() > overshoot_tolerance_pct(a.position_overshoot_pct) {
+    let g = Gains {
+        current: cur,
+        speed: spd,
+        position_kp: k,
+    };
+    let os = overshoot(
+        p,
+        &g,
+        StepKind::Position,
+        model::position_step_duration_s(a.position_bw_hz),
+    );
+    if enforced()
+        && (os - a.position_overshoot_pct).abs() > overshoot_tolerance_pct(a.position_overshoot_pct)
+    {
         bail!(
             "position-loop overshoot {} % refused: the P loop at {} Hz gives {os:.1} % (set by its bandwidth against the speed loop's)",
             a.position_overshoot_pct,

@@ -50,7 +50,9 @@ pub fn dtft(v: &[f64], rest: usize, dt: f64, freqs_hz: &[f64]) -> Vec<C> {
 
 /// `n` frequencies spaced logarithmically over `[f0, f1]`.
 pub fn log_grid(f0: f64, f1: f64, n: usize) -> Vec<f64> {
-    (0..n).map(|k| f0 * (f1 / f0).powf(k as f64 / (n - 1).max(1) as f64)).collect()
+    (0..n)
+        .map(|k| f0 * (f1 / f0).powf(k as f64 / (n - 1).max(1) as f64))
+        .collect()
 }
 
 /// A measured frequency response on a grid.
@@ -66,7 +68,10 @@ impl Response {
     /// the operating point before it.
     pub fn ratio(x: &[f64], y: &[f64], rest: usize, dt: f64, freqs_hz: Vec<f64>) -> Self {
         let (xf, yf) = (dtft(x, rest, dt, &freqs_hz), dtft(y, rest, dt, &freqs_hz));
-        Response { h: yf.iter().zip(&xf).map(|(y, x)| y / x).collect(), freq_hz: freqs_hz }
+        Response {
+            h: yf.iter().zip(&xf).map(|(y, x)| y / x).collect(),
+            freq_hz: freqs_hz,
+        }
     }
 
     pub fn gain_db(&self) -> Vec<f64> {
@@ -78,11 +83,13 @@ impl Response {
     pub fn bandwidth_3db_hz(&self, reference: f64) -> Option<f64> {
         let lim = 20.0 * (reference * FRAC_1_SQRT_2).log10();
         let g = self.gain_db();
-        (1..g.len()).find(|&k| g[k] < lim && g[k - 1] >= lim).map(|k| {
-            let s = (g[k - 1] - lim) / (g[k - 1] - g[k]);
-            let (a, b) = (self.freq_hz[k - 1].ln(), self.freq_hz[k].ln());
-            (a + s * (b - a)).exp()
-        })
+        (1..g.len())
+            .find(|&k| g[k] < lim && g[k - 1] >= lim)
+            .map(|k| {
+                let s = (g[k - 1] - lim) / (g[k - 1] - g[k]);
+                let (a, b) = (self.freq_hz[k - 1].ln(), self.freq_hz[k].ln());
+                (a + s * (b - a)).exp()
+            })
     }
 
     /// Margins of `self` taken as an open loop.
@@ -93,8 +100,16 @@ impl Response {
 
 /// Step figures on the samples before the step comes off (`duration_s`
 /// after `t0`), smoothed by a 3-sample centred mean.
-pub fn step_figures_in(y: &[f64], dt: f64, t0: f64, duration_s: f64, amplitude: f64) -> StepFigures {
-    let end = (((t0 + duration_s) / dt).floor() as usize).saturating_sub(1).min(y.len());
+pub fn step_figures_in(
+    y: &[f64],
+    dt: f64,
+    t0: f64,
+    duration_s: f64,
+    amplitude: f64,
+) -> StepFigures {
+    let end = (((t0 + duration_s) / dt).floor() as usize)
+        .saturating_sub(1)
+        .min(y.len());
     let y = &y[..end];
     let s: Vec<f64> = (0..y.len())
         .map(|k| {
