@@ -286,7 +286,8 @@ pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked,
             }).collect::<Vec<_>>(),
         });
         rows.push(row.clone());
-        table.insert(name, row);
+        table.insert(name.clone(), row);
+        step.captured.capture.write_csv(&out.join(format!("capture_step_{name}.csv")))?;
         // The chirp's FRF too.
         let cc = &chirp.captured.capture;
         chirp.captured.capture.write_csv(&out.join(format!("chirp_{}.csv", format!("{lp:?}").to_lowercase())))?;

@@ -189,8 +189,13 @@ pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign>
             }
             let rising = hi.model_overshoot_pct >= lo.model_overshoot_pct;
             let (mut bl, mut bh) = (w[0].0, w[1].0);
-            let mut d = lo.clone();
-            for _ in 0..10 {
+            // The closest design to the ask seen while bisecting.
+            let mut d = if (lo.model_overshoot_pct - target).abs() < (hi.model_overshoot_pct - target).abs() {
+                lo.clone()
+            } else {
+                hi.clone()
+            };
+            for _ in 0..12 {
                 let mid = 0.5 * (bl + bh);
                 let Some(m) = at(mid) else { break };
                 if (m.model_overshoot_pct < target) == rising {
@@ -198,15 +203,17 @@ pub fn speed(p: &DesignPlant, cur: (f64, f64), a: &Asked) -> Result<SpeedDesign>
                 } else {
                     bh = mid;
                 }
-                d = m;
+                if (m.model_overshoot_pct - target).abs() < (d.model_overshoot_pct - target).abs() {
+                    d = m;
+                }
             }
-            if best
-                .as_ref()
-                .is_none_or(|b| d.margins.sensitivity_peak_db < b.margins.sensitivity_peak_db)
-            {
+            let close = (d.model_overshoot_pct - target).abs() <= 0.1 * overshoot_tolerance_pct(target);
+            if close && best.as_ref().is_none_or(|b| d.margins.sensitivity_peak_db < b.margins.sensitivity_peak_db) {
                 best = Some(d);
             }
-            break;
+            if close {
+                break;
+            }
         }
         if pm == a.phase_margin_deg && best.is_some() {
             break;

@@ -62,6 +62,11 @@ impl Identified {
 /// it. Returns the captures (speed steps, current step).
 pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(Vec<Capture>, Capture)> {
     let mut cl = simcheck::holding(rig, rig.control, X0_M, seed)?;
+    // The current step first, from a standing rotor (R comes from the
+    // standstill before it).
+    let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Current, 8.0, 0.02))?;
+    let mut cur = c.capture;
+    cur.source = "simulated q-current step 8 A".into();
     let mut speed = Vec::new();
     for (i, a) in [20.0, -20.0, 50.0, -50.0].into_iter().enumerate() {
         let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Speed, a, 0.25))?;
@@ -69,9 +74,6 @@ pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(V
         cap.source = format!("simulated speed step {a:+} rad/s #{i}");
         speed.push(cap);
     }
-    let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Current, 8.0, 0.02))?;
-    let mut cur = c.capture;
-    cur.source = "simulated q-current step 8 A".into();
     Ok((speed, cur))
 }
 
@@ -290,6 +292,10 @@ pub fn param_set_lines(p: &ControlParams) -> Vec<(String, f32)> {
 }
 
 /// The check's tests: a step and a chirp per loop, sized for the gains
+/// (the current step on the d axis: on q it accelerates the rotor, and the
+/// back-EMF feedforward's 1.5-period lag turns the acceleration into a
+/// current error of `1.5 T p ψ α / R`, ≈ 2 % of the step; that is the loop's
+/// disturbance response, not its reference response)
 /// (`hold_a`: the q current holding the load). The chirps start a decade
 /// below the asked bandwidth and end 4–5 times above it; the steps and the
 /// speed chirp are as large as a 6 A swing of the speed PI allows (up to
@@ -297,22 +303,30 @@ pub fn param_set_lines(p: &ControlParams) -> Vec<(String, f32)> {
 /// response.
 pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, TestSpec)> {
     let pwm = f64::from(p.rates.pwm_frequency_hz);
+    let samples = |signals: f64| (servo_core::capture::CAPTURE_STORE_CELLS as f64 / signals).floor();
     let dec = |to: f64, dur: f64, signals: f64| -> u16 {
         // Finest sampling the store allows for the duration, at least
         // 2.5 × the end frequency.
-        let fit = (1.1 * dur * pwm / (servo_core::capture::CAPTURE_STORE_CELLS as f64 / signals)).ceil() as u16;
+        let fit = (1.1 * dur * pwm / samples(signals)).ceil() as u16;
         let need = (pwm / (2.5 * to)).floor() as u16;
         fit.max(1).min(need.max(1))
+    };
+    // The whole sweep and its settling must fit the store at that sampling
+    // (the FRF needs the record to end at rest): shortened if not.
+    let fit_dur = |to: f64, dur: f64, signals: f64| -> f64 {
+        let d = f64::from(dec(to, dur, signals));
+        dur.min(0.95 * samples(signals) * d / (1.1 * pwm))
     };
     let (cb, sb, pb) = (asked.current_bw_hz, asked.speed_bw_hz, asked.position_bw_hz);
     let (cur_from, cur_to) = (cb / 10.0, (4.0 * cb).min(0.2 * pwm));
     let (spd_from, spd_to) = (sb / 4.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
     let (pos_from, pos_to) = (pb / 4.0, (5.0 * pb).min(0.1 * pwm / f64::from(p.rates.position_loop_divider)));
-    let cur_dur = (4.0 / cur_from).clamp(0.1, 0.4);
-    let spd_dur = (4.0 / spd_from).clamp(2.0, 8.0);
-    let pos_dur = (4.0 / pos_from).clamp(2.0, 12.0);
+    let cur_dur = fit_dur(cur_to, (4.0 / cur_from).clamp(0.1, 0.4), 3.0);
+    let spd_dur = fit_dur(spd_to, (4.0 / spd_from).clamp(2.0, 8.0), 3.0);
+    let pos_dur = fit_dur(pos_to, (4.0 / pos_from).clamp(2.0, 12.0), 3.0);
     let current_room = (f64::from(p.current_limit_a()) - hold_a.abs()).max(2.0);
-    let cur_amp = (0.25 * current_room).min(8.0);
+    // The d-axis step needs no room for motion; the q chirp rides on the hold.
+    let cur_amp = (0.4 * current_room).min(8.0);
     let spd_amp = (6.0 / f64::from(p.speed_pi.kp)).clamp(10.0, 100.0).min(0.3 * f64::from(p.limits.speed_max_rad_s));
     // The position loop runs under a speed chirp: its lowest frequency may
     // move the rod by at most half the following-error bound.
@@ -320,8 +334,8 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     let spd_chirp_amp = spd_amp.min(chirp_travel_rad * std::f64::consts::TAU * spd_from);
     let pos_amp = 0.3 * f64::from(p.faults.position_following_error_m);
     vec![
-        (Loop::Current, TestSpec::step(Loop::Current, cur_amp, 0.02)),
-        (Loop::Current, TestSpec::chirp(Loop::Current, 0.5 * cur_amp, cur_from, cur_to, cur_dur, dec(cur_to, cur_dur, 3.0))),
+        (Loop::Current, TestSpec::current_step_d(cur_amp, 0.02)),
+        (Loop::Current, TestSpec::chirp(Loop::Current, 0.5 * (0.25 * current_room).min(8.0), cur_from, cur_to, cur_dur, dec(cur_to, cur_dur, 3.0))),
         (Loop::Speed, TestSpec::step(Loop::Speed, spd_amp, model::speed_step_duration_s(sb))),
         (Loop::Speed, TestSpec::chirp(Loop::Speed, spd_chirp_amp, spd_from, spd_to, spd_dur, dec(spd_to, spd_dur, 3.0))),
         (Loop::Position, TestSpec::step(Loop::Position, pos_amp, model::position_step_duration_s(pb))),

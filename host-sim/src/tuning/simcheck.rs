@@ -35,12 +35,18 @@ pub struct TestSpec {
     /// Capture decimation (PWM periods per sample).
     pub decimation: u16,
     pub signals: Vec<&'static str>,
+    /// A current step on the d axis (no torque, so no motion and no
+    /// back-EMF: the current PI alone, as it serves both axes).
+    pub axis_d: bool,
 }
 
 fn signal(n: &str) -> Signal {
     match n {
         "current_q" => Signal::CurrentQ,
         "current_q_reference" => Signal::CurrentQReference,
+        "current_d" => Signal::CurrentD,
+        "current_d_reference" => Signal::CurrentDReference,
+        "voltage_d" => Signal::VoltageD,
         "voltage_q" => Signal::VoltageQ,
         "speed" => Signal::Speed,
         "speed_reference" => Signal::SpeedReference,
@@ -62,7 +68,14 @@ impl TestSpec {
         let max = (servo_core::capture::CAPTURE_STORE_CELLS / 4) as f64;
         let periods = 1.1 * duration_s * 20_000.0;
         let decimation = base.max((periods / max).ceil() as u16);
-        TestSpec { target, amplitude, duration_s, chirp: None, decimation, signals }
+        TestSpec { target, amplitude, duration_s, chirp: None, decimation, signals, axis_d: false }
+    }
+
+    /// A d-axis current step, captured every PWM period: reference,
+    /// response, voltage and speed.
+    pub fn current_step_d(amplitude: f64, duration_s: f64) -> Self {
+        let signals = vec!["current_d_reference", "current_d", "voltage_d", "speed"];
+        TestSpec { signals, axis_d: true, ..Self::step(Loop::Current, amplitude, duration_s) }
     }
 
     /// A chirp: reference, response and the loop's controller output (the
@@ -74,13 +87,13 @@ impl TestSpec {
             Loop::Speed => vec!["speed_reference", "speed", "current_q_reference"],
             Loop::Position => vec!["position_command", "motor_position", "speed_reference"],
         };
-        TestSpec { target, amplitude, duration_s, chirp: Some((from_hz, to_hz)), decimation, signals }
+        TestSpec { target, amplitude, duration_s, chirp: Some((from_hz, to_hz)), decimation, signals, axis_d: false }
     }
 
     fn test_signal(&self) -> TestSignal {
         let (a, d) = (self.amplitude as f32, self.duration_s as f32);
         match (self.chirp, self.target) {
-            (None, Loop::Current) => TestSignal::CurrentStep { axis_q: true, amplitude_a: a, duration_s: d },
+            (None, Loop::Current) => TestSignal::CurrentStep { axis_q: !self.axis_d, amplitude_a: a, duration_s: d },
             (None, Loop::Speed) => TestSignal::SpeedStep { amplitude_rad_s: a, duration_s: d },
             (None, Loop::Position) => TestSignal::PositionStep { distance_m: a, duration_s: d },
             (Some((f0, f1)), t) => TestSignal::Chirp {
