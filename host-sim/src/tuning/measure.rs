@@ -79,23 +79,36 @@ impl Response {
     }
 
     /// First frequency where `|H|` falls 3 dB below `reference` (1 for a loop
-    /// with integral action), interpolated in dB between grid points.
+    /// with integral action), interpolated in dB between grid points, on the
+    /// gain smoothed over 1/6 octave (a mean in dB over the grid points within
+    /// ±1/12 octave): friction and noise leave single-point dips that are not
+    /// the loop's roll-off.
     pub fn bandwidth_3db_hz(&self, reference: f64) -> Option<f64> {
         let lim = 20.0 * (reference * FRAC_1_SQRT_2).log10();
-        let g = self.gain_db();
-        (1..g.len())
-            .find(|&k| g[k] < lim && g[k - 1] >= lim)
-            .map(|k| {
-                let s = (g[k - 1] - lim) / (g[k - 1] - g[k]);
-                let (a, b) = (self.freq_hz[k - 1].ln(), self.freq_hz[k].ln());
-                (a + s * (b - a)).exp()
-            })
+        let g = smoothed(&self.freq_hz, &self.gain_db(), 1.0 / 12.0);
+        (1..g.len()).find(|&k| g[k] < lim && g[k - 1] >= lim).map(|k| {
+            let s = (g[k - 1] - lim) / (g[k - 1] - g[k]);
+            let (a, b) = (self.freq_hz[k - 1].ln(), self.freq_hz[k].ln());
+            (a + s * (b - a)).exp()
+        })
     }
 
     /// Margins of `self` taken as an open loop.
     pub fn margins(&self) -> Margins {
         margins_from_samples(&self.freq_hz, &self.h)
     }
+}
+
+/// `v` averaged over the points of `f` within ±`half_octaves` of each.
+pub fn smoothed(f: &[f64], v: &[f64], half_octaves: f64) -> Vec<f64> {
+    let k = 2f64.powf(half_octaves);
+    (0..v.len())
+        .map(|i| {
+            let (lo, hi) = (f[i] / k, f[i] * k);
+            let w: Vec<f64> = (0..v.len()).filter(|&j| f[j] >= lo && f[j] <= hi).map(|j| v[j]).collect();
+            w.iter().sum::<f64>() / w.len() as f64
+        })
+        .collect()
 }
 
 /// Step figures on the samples before the step comes off (`duration_s`

@@ -332,14 +332,16 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     // move the rod by at most half the following-error bound.
     let chirp_travel_rad = 0.5 * f64::from(p.faults.position_following_error_m) / f64::from(p.metres_per_rad());
     let spd_chirp_amp = spd_amp.min(chirp_travel_rad * std::f64::consts::TAU * spd_from);
-    let pos_amp = 0.3 * f64::from(p.faults.position_following_error_m);
+    // Half the following-error bound: the friction's creep at rest (tens of
+    // µm) stays a small share of it.
+    let pos_amp = 0.5 * f64::from(p.faults.position_following_error_m);
     vec![
         (Loop::Current, TestSpec::current_step_d(cur_amp, 0.02)),
         (Loop::Current, TestSpec::chirp(Loop::Current, 0.5 * (0.25 * current_room).min(8.0), cur_from, cur_to, cur_dur, dec(cur_to, cur_dur, 3.0))),
         (Loop::Speed, TestSpec::step(Loop::Speed, spd_amp, model::speed_step_duration_s(sb))),
         (Loop::Speed, TestSpec::chirp(Loop::Speed, spd_chirp_amp, spd_from, spd_to, spd_dur, dec(spd_to, spd_dur, 3.0))),
         (Loop::Position, TestSpec::step(Loop::Position, pos_amp, model::position_step_duration_s(pb))),
-        (Loop::Position, TestSpec::chirp(Loop::Position, 0.5 * pos_amp, pos_from, pos_to, pos_dur, dec(pos_to, pos_dur, 3.0))),
+        (Loop::Position, TestSpec::chirp(Loop::Position, 0.25 * f64::from(p.faults.position_following_error_m), pos_from, pos_to, pos_dur, dec(pos_to, pos_dur, 3.0))),
     ]
 }
 
