@@ -378,12 +378,7 @@ impl Controller {
                 self.speed_reference_rad_s += c - self.test.speed_offset_rad_s;
                 self.test.speed_offset_rad_s = c;
             }
-            ChirpTarget::Position => {
-                // Its velocity, for the friction feedforward (exact to f32
-                // rounding: the sweep is evaluated in closed form).
-                self.test.position_offset_velocity_m_s = (c - self.test.position_offset_m) * self.params.rates.pwm_frequency_hz;
-                self.test.position_offset_m = c;
-            }
+            ChirpTarget::Position => self.test.position_offset_m = c,
         }
     }
 

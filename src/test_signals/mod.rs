@@ -89,8 +89,6 @@ pub struct TestRun {
     /// speed reference (position period adds it) and the position command.
     pub speed_offset_rad_s: f32,
     pub position_offset_m: f32,
-    /// The position chirp's velocity (its friction is fed forward).
-    pub position_offset_velocity_m_s: f32,
     /// The chirp on the q-current reference (the speed period adds it).
     pub current_offset_a: f32,
 }
@@ -112,7 +110,6 @@ impl TestRun {
             chirp: Chirp { amplitude: 0.0, f0_cycles: 0.0, ln_k: 0.0, inv_periods: 1.0, cycles_scale: 0.0, k: 1.0 },
             speed_offset_rad_s: 0.0,
             position_offset_m: 0.0,
-            position_offset_velocity_m_s: 0.0,
             current_offset_a: 0.0,
         }
     }

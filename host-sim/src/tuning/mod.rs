@@ -341,7 +341,7 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
         (Loop::Speed, TestSpec::step(Loop::Speed, spd_amp, model::speed_step_duration_s(sb))),
         (Loop::Speed, TestSpec::chirp(Loop::Speed, spd_chirp_amp, spd_from, spd_to, spd_dur, dec(spd_to, spd_dur, 3.0))),
         (Loop::Position, TestSpec::step(Loop::Position, pos_amp, model::position_step_duration_s(pb))),
-        (Loop::Position, TestSpec::chirp(Loop::Position, 0.25 * f64::from(p.faults.position_following_error_m), pos_from, pos_to, pos_dur, dec(pos_to, pos_dur, 3.0))),
+        (Loop::Position, TestSpec::chirp(Loop::Position, 0.4 * f64::from(p.faults.position_following_error_m), pos_from, pos_to, pos_dur, dec(pos_to, pos_dur, 3.0))),
     ]
 }
 
