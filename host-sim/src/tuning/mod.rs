@@ -327,7 +327,7 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     let current_room = (f64::from(p.current_limit_a()) - hold_a.abs()).max(2.0);
     // The d-axis step needs no room for motion; the q chirp rides on the hold.
     let cur_amp = (0.4 * current_room).min(8.0);
-    let spd_amp = (6.0 / f64::from(p.speed_pi.kp)).clamp(10.0, 100.0).min(0.3 * f64::from(p.limits.speed_max_rad_s));
+    let spd_amp = (10.0 / f64::from(p.speed_pi.kp)).clamp(10.0, 100.0).min(0.3 * f64::from(p.limits.speed_max_rad_s));
     // The position loop runs under a speed chirp: its lowest frequency may
     // move the rod by at most half the following-error bound.
     let chirp_travel_rad = 0.5 * f64::from(p.faults.position_following_error_m) / f64::from(p.metres_per_rad());
