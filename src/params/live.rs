@@ -74,6 +74,7 @@ impl ControlParams {
         off!(self.thermal, new.thermal, "control.thermal");
         off!(self.ratings, new.ratings, "control.ratings");
         off!(self.brake, new.brake, "control.brake");
+        off!(self.speed_setpoint_weight, new.speed_setpoint_weight, "control.speed_setpoint_weight");
         None
     }
 }
