@@ -415,10 +415,10 @@ impl ControlParams {
             kp: 1.95e-4 * SPEED_BANDWIDTH_RAD_S / 0.105,
             ki: 1.95e-4 * SPEED_BANDWIDTH_RAD_S / 0.105 * SPEED_BANDWIDTH_RAD_S / 4.0,
         },
+        speed_setpoint_weight: 1.0,
         // The coupling + screw-twist torsional mode sits near 370 Hz at full
         // extension (lower stiffness) with ≈2 % damping; 150 Hz takes its
         // loop gain under one and costs ≈22° at the 40 Hz crossover.
-        speed_setpoint_weight: 1.0,
         torque_filter_hz: 150.0,
         // A quarter of the speed bandwidth (ω_s/4 ≈ 63/s): no overshoot; the
         // velocity feedforward carries the tracking.

@@ -22,9 +22,11 @@ pub const SENSITIVITY_PEAK_MAX_DB: f64 = 6.0;
 /// model and the −3 dB falls there.
 pub const CURRENT_BW_PER_MODE: f64 = 0.7;
 
-/// That mode on the nominal rig, Hz: the dip of the q current loop's
-/// measured gain against its model (440–500 Hz, `tune bench --unchecked`,
-/// the 1 kHz ask). Measured on the simulator, not identified per rig.
+/// That mode (coupling + screw twist) on the nominal rig at the bench's
+/// 250 mm, Hz: the dip of the q current loop's measured gain against its
+/// model (440–500 Hz, `tune bench --unchecked`, the 1 kHz ask). Measured on
+/// the simulator, not identified per rig or position (≈370 Hz at full
+/// extension).
 pub const DRIVE_TRAIN_MODE_HZ: f64 = 450.0;
 
 static ENFORCED: AtomicBool = AtomicBool::new(true);
@@ -49,7 +51,7 @@ pub fn current(p: &DesignPlant, a: &Asked) -> Result<(f64, f64, Margins, f64)> {
     let max = CURRENT_BW_PER_MODE * DRIVE_TRAIN_MODE_HZ;
     if enforced() && a.current_bw_hz > max {
         bail!(
-            "current-loop bandwidth {} Hz refused: the drive train's mode at ≈{DRIVE_TRAIN_MODE_HZ:.0} Hz, seen through the back-EMF, dips the q loop's gain 2–4 dB there (a 1 kHz design measures 446 Hz); at most {max:.0} Hz (no notch on the current reference in this core)",
+            "current-loop bandwidth {} Hz refused: the drive train's torsional mode at ≈{DRIVE_TRAIN_MODE_HZ:.0} Hz (250 mm), seen through the back-EMF, dips the q loop's gain 2–4 dB there (a 1 kHz design measures 446 Hz); at most {max:.0} Hz (no notch on the current reference in this core)",
             a.current_bw_hz
         );
     }
