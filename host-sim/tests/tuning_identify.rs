@@ -27,5 +27,5 @@ fn speed_steps_recover_inertia_friction_and_load_and_a_current_step_r_and_l() {
     assert!(rel(m.viscous_n_m_s_rad.value, nom.viscous_n_m_s_rad) < 0.25, "viscous within 25 %");
     assert!(m.fit.r2 > 0.999);
     assert!(rel(e.inductance_h.value, 0.35e-3) < 0.03, "L within 3 %");
-    assert!(rel(e.resistance_ohm.value, 0.12) < 0.12, "R within 12 % (biased +10 %: see docs/tuning.md)");
+    assert!(rel(e.resistance_ohm.value, 0.12) < 0.02, "R within 2 % (from the standstill: see docs/tuning.md)");
 }

@@ -228,7 +228,16 @@ impl Controller {
             self.limits.insert(LimitFlags::SPEED);
         }
         self.bound_regeneration();
-        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, r.velocity_m_s, self.load.slow_force_n());
+        // A speed chirp's friction is fed forward from its reference, as a
+        // move's is from the plan (and a speed step's, `test_track_position`):
+        // the test then measures the loop the drive runs, not Coulomb
+        // friction switching at every reversal of the sweep.
+        let planned_m_s = if self.test.speed_offset_rad_s != 0.0 {
+            r.velocity_m_s + self.test.speed_offset_rad_s * self.params.metres_per_rad()
+        } else {
+            r.velocity_m_s
+        };
+        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, planned_m_s, self.load.slow_force_n());
         if self.stream.active() {
             // A streamed force feedforward: the load the platform expects,
             // as torque at the screw.

@@ -72,7 +72,14 @@ impl SpeedLoop {
         let torque_ff = p.reflected_inertia_kg_m2() * acceleration_reference_rad_s2
             + p.drive_train.viscous_friction_n_m_s_rad * speed_reference_rad_s
             + friction_ff_n_m;
-        let ff_a = torque_ff / p.torque_constant_n_m_a();
+        let mut ff_a = torque_ff / p.torque_constant_n_m_a();
+        let b = p.speed_setpoint_weight;
+        if b != 1.0 {
+            // Setpoint weighting: kp (b r − y) = kp (r − y) − kp (1 − b) r;
+            // the second term rides with the feedforward (skipped at 1, so
+            // the plain PI is bit for bit what it was).
+            ff_a -= p.speed_pi.kp * (1.0 - b) * speed_reference_rad_s;
+        }
         let error = speed_reference_rad_s - speed_measured_rad_s;
         self.error_mean_rad_s += ERROR_MEAN_SHARE * (error - self.error_mean_rad_s);
         let out = self.pi.update(

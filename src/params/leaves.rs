@@ -81,6 +81,7 @@ leaves! {
     current_pi.ki,
     speed_pi.kp,
     speed_pi.ki,
+    speed_setpoint_weight,
     torque_filter_hz,
     position_kp_per_s,
     encoder.counts_per_rev,

@@ -269,6 +269,12 @@ pub struct CompensationParams {
     pub shift_rate_max_m_s: f32,
 }
 
+/// A plain PI: parameter records and files written before the weight
+/// existed keep their behaviour.
+const fn speed_setpoint_weight_default() -> f32 {
+    1.0
+}
+
 /// The whole parameter set of the control core.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
@@ -281,6 +287,12 @@ pub struct ControlParams {
     pub current_pi: PiGains,
     /// Speed PI (A per rad/s, A per rad).
     pub speed_pi: PiGains,
+    /// Setpoint weight `b` of the speed PI's proportional term (2-DOF):
+    /// `u = kp (b ω_ref − ω) + ki ∫(ω_ref − ω) dt`. Shapes the reference
+    /// response (overshoot) without touching the loop's disturbance
+    /// response or margins; 1 is the plain PI. In [0, 2].
+    #[serde(default = "speed_setpoint_weight_default")]
+    pub speed_setpoint_weight: f32,
     /// Corner of the 2nd-order low-pass on the q-current reference
     /// (torque command filter); 0 switches it off.
     pub torque_filter_hz: f32,
@@ -404,6 +416,7 @@ impl ControlParams {
             kp: 1.95e-4 * SPEED_BANDWIDTH_RAD_S / 0.105,
             ki: 1.95e-4 * SPEED_BANDWIDTH_RAD_S / 0.105 * SPEED_BANDWIDTH_RAD_S / 4.0,
         },
+        speed_setpoint_weight: 1.0,
         // The coupling + screw-twist torsional mode sits near 370 Hz at full
         // extension (lower stiffness) with ≈2 % damping; 150 Hz takes its
         // loop gain under one and costs ≈22° at the 40 Hz crossover.

@@ -115,6 +115,7 @@ const RULES: &[Rule] = &[
     non_negative!(current_pi.ki),
     positive!(speed_pi.kp),
     non_negative!(speed_pi.ki),
+    non_negative!(speed_setpoint_weight),
     non_negative!(torque_filter_hz),
     positive!(position_kp_per_s),
     nonzero!(encoder.counts_per_rev),
@@ -258,6 +259,11 @@ impl ControlParams {
             // Above the modelled friction the feedforward drives the rod
             // ahead of its reference at every start.
             return Err(ParamError { leaf: leaf!(drive_train.friction_feedforward_gain), reason: Reason::MustBeAtMostOne });
+        }
+        if self.speed_setpoint_weight > 2.0 {
+            // Beyond 2 the proportional path alone overshoots more than the
+            // tuner's widest ask; the weight shapes overshoot, it is not a gain.
+            return Err(ParamError { leaf: leaf!(speed_setpoint_weight), reason: Reason::MustBeAtMostTwo });
         }
         if !self.rates.position_loop_divider.is_multiple_of(self.rates.speed_loop_divider) {
             return Err(ParamError {

@@ -38,6 +38,7 @@ reasons! {
     MustBeNonNegative = "must be >= 0",
     MustBeAtLeastOne = "must be >= 1",
     MustBeAtMostOne = "must be <= 1",
+    MustBeAtMostTwo = "must be <= 2",
     MustBeBelowOne = "must be < 1",
     MustBeFiniteAboveOne = "must be finite and > 1",
     MustBeOneOrMinusOne = "must be 1 or -1",

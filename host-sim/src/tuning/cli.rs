@@ -48,6 +48,16 @@ pub enum TuneCmd {
         phase_margin_deg: f64,
         #[arg(long)]
         position_bw_hz: f64,
+        /// Asked current-step overshoot, %.
+        #[arg(long, default_value_t = 0.0)]
+        current_overshoot_pct: f64,
+        /// Asked speed-step overshoot, % (met by the speed PI's setpoint
+        /// weight); default: a plain PI, whatever overshoot it gives.
+        #[arg(long)]
+        speed_overshoot_pct: Option<f64>,
+        /// Asked position-step overshoot, %.
+        #[arg(long, default_value_t = 0.0)]
+        position_overshoot_pct: f64,
         /// identified.json of `tune identify`; default: the parameters' own
         /// inertia, friction and winding.
         #[arg(long)]
@@ -57,10 +67,9 @@ pub enum TuneCmd {
         /// Override the torque filter corner (Hz) the design keeps.
         #[arg(long)]
         torque_filter_hz: Option<f64>,
-        /// Design the speed loop on the two-mass model (rod mode) instead of
-        /// the rigid one.
+        /// Design on the rigid model (without the rod's axial mode).
         #[arg(long)]
-        rod_mode: bool,
+        rigid: bool,
         #[arg(long, default_value = "out/tune/proposal")]
         out: PathBuf,
         #[arg(long, default_value_t = 1)]
@@ -74,6 +83,13 @@ pub enum TuneCmd {
         out: PathBuf,
         #[arg(long)]
         params: Option<PathBuf>,
+        /// A JSON list of cases ({name, asked, rigid}) instead of the
+        /// built-in ones.
+        #[arg(long)]
+        cases: Option<PathBuf>,
+        /// Diagnostic: propose and check even asks the limits refuse.
+        #[arg(long)]
+        unchecked: bool,
     },
 }
 
@@ -113,7 +129,21 @@ pub fn run(a: TuneArgs) -> Result<()> {
                 "nominal_rig": nominal, "written": out }))?);
             Ok(())
         }
-        TuneCmd::Propose { current_bw_hz, speed_bw_hz, phase_margin_deg, position_bw_hz, identified, params, torque_filter_hz, rod_mode, out, seed } => {
+        TuneCmd::Propose {
+            current_bw_hz,
+            speed_bw_hz,
+            phase_margin_deg,
+            position_bw_hz,
+            current_overshoot_pct,
+            speed_overshoot_pct,
+            position_overshoot_pct,
+            identified,
+            params,
+            torque_filter_hz,
+            rigid,
+            out,
+            seed,
+        } => {
             let mut rig = RigConfig::load_or_nominal(params.as_ref())?;
             if let Some(f) = torque_filter_hz {
                 rig.control.torque_filter_hz = f as f32;
@@ -125,16 +155,26 @@ pub fn run(a: TuneArgs) -> Result<()> {
                 }
                 None => None,
             };
-            let asked = Asked { current_bw_hz, speed_bw_hz, phase_margin_deg, position_bw_hz };
-            let s = propose_and_check(&rig, id.as_ref(), asked, rod_mode, seed, &out)?;
+            let asked = Asked {
+                current_bw_hz,
+                current_overshoot_pct,
+                speed_bw_hz,
+                phase_margin_deg,
+                speed_overshoot_pct,
+                position_bw_hz,
+                position_overshoot_pct,
+            };
+            let s = propose_and_check(&rig, id.as_ref(), asked, rigid, seed, &out)?;
             println!("{}", serde_json::to_string_pretty(&s["table"])?);
             println!("wrote {}/proposal.toml, summary.json, step_*.csv/png", out.display());
             Ok(())
         }
-        TuneCmd::Bench { out, params } => {
+        TuneCmd::Bench { out, params, cases, unchecked } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
-            let s = bench(&rig, &out)?;
+            super::feasible::set_enforced(!unchecked);
+            let s = bench(&rig, &out, cases.as_deref())?;
             println!("{}", serde_json::to_string_pretty(&s["table"])?);
+            println!("{}", serde_json::to_string_pretty(&s["refused"])?);
             Ok(())
         }
     }
@@ -151,9 +191,9 @@ fn within(asked: f64, got: Option<f64>) -> Option<f64> {
 
 /// Proposes, checks on the simulator, writes everything to `out`; returns
 /// the summary.
-pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked, rod: bool, seed: u64, out: &Path) -> Result<serde_json::Value> {
+pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked, rigid: bool, seed: u64, out: &Path) -> Result<serde_json::Value> {
     std::fs::create_dir_all(out)?;
-    let prop = propose(rig, id, asked, rod)?;
+    let prop = propose(rig, id, asked, rigid)?;
     std::fs::write(out.join("proposal.toml"), control_fragment(&prop.params))?;
     let results = check(rig, prop.params, &asked, seed)?;
     let mut table = serde_json::Map::new();
@@ -162,8 +202,7 @@ pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked,
         let step = results.iter().find(|r| r.target == lp && r.spec.chirp.is_none()).expect("a step");
         let chirp = results.iter().find(|r| r.target == lp && r.spec.chirp.is_some()).expect("a chirp");
         let sf = step.figures.step.clone().unwrap_or_default();
-        let ff = chirp.figures.frf.clone().unwrap_or_default();
-        let bw = chirp.figures.bandwidth_3db_interp_hz;
+        let bw = chirp.figures.bandwidth_3db_hz;
         let name = format!("{lp:?}").to_lowercase();
         // The predicted step (design model) next to the simulated one.
         let cap = &step.captured.capture;
@@ -205,24 +244,50 @@ pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked,
             &cap.names[1],
             &[Series { name: "reference", points: ref_pts }, Series { name: "simulated (full plant)", points: sim_pts }, Series { name: "design model", points: mod_pts }],
         )?;
+        let asked_os = design.asked_overshoot_pct.unwrap_or(design.model_overshoot_pct);
+        let bw_pass = measure::bandwidth_ok(design.asked_bandwidth_hz, bw);
+        let os_pass = measure::overshoot_ok(asked_os, sf.overshoot_pct);
         let row = serde_json::json!({
             "loop": name,
             "asked_bandwidth_hz": design.asked_bandwidth_hz,
             "asked_phase_margin_deg": design.asked_phase_margin_deg,
             "model_bandwidth_hz": design.model_bandwidth_hz,
             "achieved_bandwidth_hz": bw,
-            "achieved_bandwidth_first_bin_hz": ff.bandwidth_3db_hz,
             "bandwidth_error_pct": within(design.asked_bandwidth_hz, bw),
+            "low_frequency_gain_db": chirp.figures.low_frequency_gain_db,
             "model_phase_margin_deg": design.margins.phase_margin_deg,
-            "achieved_phase_margin_deg": ff.phase_margin_deg,
-            "asked_overshoot_pct": design.model_overshoot_pct,
+            "model_gain_margin_db": design.margins.gain_margin_db,
+            "achieved_phase_margin_deg": chirp.figures.margins.as_ref().and_then(|m| m.phase_margin_deg),
+            "achieved_gain_margin_db": chirp.figures.margins.as_ref().and_then(|m| m.gain_margin_db),
+            "asked_overshoot_pct": asked_os,
+            "overshoot_asked_explicitly": design.asked_overshoot_pct.is_some(),
+            "model_overshoot_pct": design.model_overshoot_pct,
             "achieved_overshoot_pct": sf.overshoot_pct,
-            "overshoot_error_pct": if design.model_overshoot_pct > 0.5 { Some(100.0 * (sf.overshoot_pct - design.model_overshoot_pct) / design.model_overshoot_pct) } else { None },
+            "overshoot_tolerance_pct": measure::overshoot_tolerance_pct(asked_os),
+            "bandwidth_pass": bw_pass,
+            "overshoot_pass": os_pass,
+            "pass": bw_pass && os_pass,
             "rise_time_s": sf.rise_time_s,
             "settling_time_s": sf.settling_time_s,
+            "step_amplitude": step.spec.amplitude,
+            "chirp_amplitude": chirp.spec.amplitude,
+            "chirp_hz": chirp.spec.chirp,
+            // Measured against the design model's closed loop, every 8th
+            // grid point: (Hz, measured dB, model dB, measured °, model °).
+            "frf_vs_model": chirp.figures.frf.iter().flatten().step_by(8).map(|&(f, g, ph)| {
+                let w = std::f64::consts::TAU * f;
+                let (cu, sp) = ((prop.current.kp, prop.current.ki), (prop.speed.kp, prop.speed.ki));
+                let m = match lp {
+                    Loop::Current => prop.plant.current_cl(cu.0, cu.1, w),
+                    Loop::Speed => prop.plant.speed_cl(cu, sp, w),
+                    Loop::Position => prop.plant.position_cl(cu, sp, prop.position.kp, w),
+                };
+                [f, g, 20.0 * m.norm().log10(), ph, m.arg().to_degrees()]
+            }).collect::<Vec<_>>(),
         });
         rows.push(row.clone());
-        table.insert(name, row);
+        table.insert(name.clone(), row);
+        step.captured.capture.write_csv(&out.join(format!("capture_step_{name}.csv")))?;
         // The chirp's FRF too.
         let cc = &chirp.captured.capture;
         chirp.captured.capture.write_csv(&out.join(format!("chirp_{}.csv", format!("{lp:?}").to_lowercase())))?;
@@ -241,40 +306,83 @@ pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked,
     Ok(summary)
 }
 
-/// Identification on the simulator, then two speed-loop cases.
-pub fn bench(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
+/// One benchmark case: a name, the ask, and the rigid-model switch.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct BenchCase {
+    pub name: String,
+    pub asked: Asked,
+    #[serde(default)]
+    pub rigid: bool,
+}
+
+/// The benchmark's cases: asks spread over what the rig carries (low ones
+/// included: they missed before), with and without an overshoot ask, and
+/// asks beyond the modes, which must be refused with the reason.
+pub fn bench_cases() -> Vec<BenchCase> {
+    let c = |name: &str, cb: f64, sb: f64, pm: f64, os: Option<f64>, pb: f64| BenchCase {
+        name: name.into(),
+        asked: Asked { speed_overshoot_pct: os, ..Asked::new(cb, sb, pm, pb) },
+        rigid: false,
+    };
+    vec![
+        c("c200_s5_os10_p1", 200.0, 5.0, 60.0, Some(10.0), 1.0),
+        c("c300_s10_os10_p2", 300.0, 10.0, 60.0, Some(10.0), 2.0),
+        c("c300_s10_plain_p2", 300.0, 10.0, 60.0, None, 2.0),
+        c("c300_s12_os5_p2", 300.0, 12.0, 60.0, Some(5.0), 2.0),
+        c("c250_s15_os15_p3", 250.0, 15.0, 55.0, Some(15.0), 3.0),
+        c("c300_s20_os20_p4", 300.0, 20.0, 55.0, Some(20.0), 4.0),
+        // Beyond the modes: refused.
+        c("c1000_s30_p5", 1000.0, 30.0, 60.0, None, 5.0),
+        c("c300_s30_os20_p5", 300.0, 30.0, 60.0, Some(20.0), 5.0),
+        c("c300_s60_p10", 300.0, 60.0, 50.0, None, 10.0),
+    ]
+}
+
+/// Identification on the simulator, then each case proposed (or refused)
+/// and checked on the full plant. `cases`: a JSON list of [`BenchCase`]
+/// instead of [`bench_cases`].
+pub fn bench(rig: &RigConfig, out: &Path, cases: Option<&Path>) -> Result<serde_json::Value> {
     std::fs::create_dir_all(out)?;
     let (speed, cur) = simulate_identification_captures(rig, 1)?;
     let (m, e) = identify(&speed, Some(&cur), &rig.control)?;
     let id = Identified::from_fits(&m, e.as_ref());
     let nominal = identify::nominal_mech(&Physics::from_rig(rig), rig_load_n(rig));
-    let cases = [
-        ("30hz_60deg", Asked { current_bw_hz: 1000.0, speed_bw_hz: 30.0, phase_margin_deg: 60.0, position_bw_hz: 5.0 }, false),
-        ("60hz_50deg", Asked { current_bw_hz: 1000.0, speed_bw_hz: 60.0, phase_margin_deg: 50.0, position_bw_hz: 10.0 }, false),
-        // Below the rod's ≈32 Hz anti-resonance and the ≈380 Hz torsional
-        // mode, where the rigid design model holds.
-        ("10hz_60deg", Asked { current_bw_hz: 300.0, speed_bw_hz: 10.0, phase_margin_deg: 60.0, position_bw_hz: 2.0 }, false),
-        ("15hz_55deg", Asked { current_bw_hz: 400.0, speed_bw_hz: 15.0, phase_margin_deg: 55.0, position_bw_hz: 3.0 }, false),
-    ];
+    let cases: Vec<BenchCase> = match cases {
+        Some(p) => serde_json::from_str(&std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?)?,
+        None => bench_cases(),
+    };
     let mut table = Vec::new();
+    let mut refused = Vec::new();
     let mut all = Vec::new();
-    for (name, asked, rod) in cases {
-        let s = propose_and_check(rig, Some(&id), asked, rod, 1, &out.join(name))?;
-        for r in s["table"].as_array().into_iter().flatten() {
-            let mut r = r.clone();
-            r["case"] = serde_json::json!(name);
-            table.push(r);
+    for case in cases {
+        match propose_and_check(rig, Some(&id), case.asked, case.rigid, 1, &out.join(&case.name)) {
+            Ok(s) => {
+                for r in s["table"].as_array().into_iter().flatten() {
+                    let mut r = r.clone();
+                    r["case"] = serde_json::json!(case.name);
+                    table.push(r);
+                }
+                all.push(serde_json::json!({ "case": case.name, "asked": case.asked, "rigid": case.rigid, "accepted": true, "table": s["table"] }));
+            }
+            Err(e) => {
+                let why = format!("{e:#}");
+                refused.push(serde_json::json!({ "case": case.name, "asked": case.asked, "refused": why }));
+                all.push(serde_json::json!({ "case": case.name, "asked": case.asked, "rigid": case.rigid, "accepted": false, "refused": why }));
+            }
         }
-        all.push(serde_json::json!({ "case": name, "asked": asked, "rod_mode_design": rod, "table": s["table"] }));
     }
-    if table.is_empty() {
+    if all.is_empty() {
         bail!("no case ran");
     }
+    let pass = !table.is_empty() && table.iter().all(|r| r["pass"].as_bool() == Some(true));
     let summary = serde_json::json!({
+        "figure": "the proposed gains, on the simulator: step overshoot and bandwidth within 20 % of what was asked for (bandwidth ±20 % of the ask; overshoot ±20 % of the ask for asks ≥ 5 %, ±1 percentage point below)",
+        "all_accepted_pass": pass,
         "identified": id,
         "nominal_rig": nominal,
         "cases": all,
         "table": table,
+        "refused": refused,
     });
     std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary)?)?;
     Ok(summary)

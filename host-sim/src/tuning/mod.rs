@@ -4,11 +4,13 @@
 //! go to a drive. `host-sim tune …`; docs/tuning.md.
 
 
+pub mod cli;
 pub mod design;
+pub mod feasible;
 pub mod identify;
+pub mod measure;
 pub mod model;
 pub mod simcheck;
-pub mod cli;
 
 use crate::config::RigConfig;
 use crate::diagnose::residual::Physics;
@@ -60,6 +62,11 @@ impl Identified {
 /// it. Returns the captures (speed steps, current step).
 pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(Vec<Capture>, Capture)> {
     let mut cl = simcheck::holding(rig, rig.control, X0_M, seed)?;
+    // The current step first, from a standing rotor (R comes from the
+    // standstill before it).
+    let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Current, 8.0, 0.02))?;
+    let mut cur = c.capture;
+    cur.source = "simulated q-current step 8 A".into();
     let mut speed = Vec::new();
     for (i, a) in [20.0, -20.0, 50.0, -50.0].into_iter().enumerate() {
         let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Speed, a, 0.25))?;
@@ -67,9 +74,6 @@ pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(V
         cap.source = format!("simulated speed step {a:+} rad/s #{i}");
         speed.push(cap);
     }
-    let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Current, 8.0, 0.02))?;
-    let mut cur = c.capture;
-    cur.source = "simulated q-current step 8 A".into();
     Ok((speed, cur))
 }
 
@@ -86,13 +90,36 @@ pub fn identify(speed: &[Capture], current: Option<&Capture>, control: &ControlP
     Ok((mech, elec))
 }
 
-/// What is asked of the loops.
+/// What is asked of the loops: a bandwidth and an overshoot each (the
+/// speed loop also a phase margin; its overshoot, when given, is met by the
+/// setpoint weight `control.speed_setpoint_weight`).
 #[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Asked {
     pub current_bw_hz: f64,
+    #[serde(default)]
+    pub current_overshoot_pct: f64,
     pub speed_bw_hz: f64,
     pub phase_margin_deg: f64,
+    /// None: a plain PI (weight 1), whatever overshoot that gives.
+    #[serde(default)]
+    pub speed_overshoot_pct: Option<f64>,
     pub position_bw_hz: f64,
+    #[serde(default)]
+    pub position_overshoot_pct: f64,
+}
+
+impl Asked {
+    pub fn new(current_bw_hz: f64, speed_bw_hz: f64, phase_margin_deg: f64, position_bw_hz: f64) -> Self {
+        Asked {
+            current_bw_hz,
+            current_overshoot_pct: 0.0,
+            speed_bw_hz,
+            phase_margin_deg,
+            speed_overshoot_pct: None,
+            position_bw_hz,
+            position_overshoot_pct: 0.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -102,8 +129,10 @@ pub struct Proposal {
     pub current: LoopDesign,
     pub speed: LoopDesign,
     pub position: LoopDesign,
-    /// The rod's axial mode at the test position (nominal rig), for the
-    /// record: the design model is rigid unless `with_rod_mode`.
+    /// The speed PI's setpoint weight.
+    pub speed_setpoint_weight: f64,
+    /// The rod's axial mode at the test position (nominal rig); in the
+    /// design model unless `rigid`.
     pub rod_mode: RodMode,
     #[serde(skip)]
     pub params: ControlParams,
@@ -117,14 +146,16 @@ pub fn rod_mode(rig: &RigConfig, x: f64) -> RodMode {
     RodMode::new(1.0 / c, ph.axial_damping_n_s_m, ph.m_moving, ph.j_eq(), ph.j_rot)
 }
 
-/// Proposes the gains. `ident` (else the parameters' own beliefs) gives
-/// the inertia, friction and winding; `with_rod_mode` designs the speed
-/// loop on the two-mass model instead of the rigid one.
-pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_rod_mode: bool) -> Result<Proposal> {
+/// Proposes the gains, or refuses the ask with the reason
+/// (`feasible`). `ident` (else the parameters' own beliefs) gives the
+/// inertia, friction and winding; the design model carries the rod's axial
+/// mode unless `rigid`.
+pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, rigid: bool) -> Result<Proposal> {
     let base = rig.control;
     let j = ident.map_or(f64::from(base.reflected_inertia_kg_m2()), |i| i.inertia_kg_m2);
     let b = ident.map_or(f64::from(base.drive_train.viscous_friction_n_m_s_rad), |i| i.viscous_n_m_s_rad.max(0.0));
     let mut plant = DesignPlant::from_params(&base, j, b);
+    plant.speed_setpoint_weight = 1.0;
     if let Some(r) = ident.and_then(|i| i.resistance_ohm) {
         plant.r_ohm = r;
     }
@@ -132,14 +163,17 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_r
         plant.l_h = l;
     }
     let mode = rod_mode(rig, X0_M);
-    if with_rod_mode {
+    if !rigid {
         plant.rod_mode = Some(mode);
     }
-    let (ckp, cki, cm, cbw) = design::design_current(&plant, asked.current_bw_hz)?;
+    let with_rod_mode = !rigid;
+    let (ckp, cki, cm, cbw) = feasible::current(&plant, &asked)?;
     let cur = (ckp, cki);
-    let (skp, ski, sm, sbw) = design::design_speed(&plant, cur, asked.speed_bw_hz, asked.phase_margin_deg)?;
+    let sp = feasible::speed(&plant, cur, &asked)?;
+    plant.speed_setpoint_weight = sp.weight;
+    let (skp, ski, sm, sbw) = (sp.kp, sp.ki, sp.margins.clone(), sp.model_bw_hz);
     let spd = (skp, ski);
-    let (pkp, pm, pbw) = design::design_position(&plant, cur, spd, asked.position_bw_hz)?;
+    let (pkp, pm, pbw) = feasible::position(&plant, cur, spd, &asked)?;
     let gains = Gains { current: cur, speed: spd, position_kp: pkp };
     let os = |kind, dur| model::overshoot_pct(&model::step_response(&plant, &gains, kind, 1.0, dur), 1.0);
     let mut p = base;
@@ -147,6 +181,7 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_r
     p.current_pi.ki = cki as f32;
     p.speed_pi.kp = skp as f32;
     p.speed_pi.ki = ski as f32;
+    p.speed_setpoint_weight = sp.weight as f32;
     p.position_kp_per_s = pkp as f32;
     if let Some(i) = ident {
         // The feedforwards believe the identified mechanics: the rotating
@@ -178,6 +213,7 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_r
         asked_phase_margin_deg: None,
         model_bandwidth_hz: cbw,
         margins: cm,
+        asked_overshoot_pct: Some(asked.current_overshoot_pct),
         model_overshoot_pct: os(StepKind::Current, 0.01),
         rule: "pole-zero cancellation kp = L ω_c, ki = R ω_c on the sampled loop (one period of computation + the PWM update); ω_c solved for the asked −3 dB frequency".into(),
     };
@@ -188,11 +224,13 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_r
         asked_phase_margin_deg: Some(asked.phase_margin_deg),
         model_bandwidth_hz: sbw,
         margins: sm,
-        model_overshoot_pct: os(StepKind::Speed, 0.3),
+        asked_overshoot_pct: asked.speed_overshoot_pct,
+        model_overshoot_pct: os(StepKind::Speed, model::speed_step_duration_s(asked.speed_bw_hz)),
         rule: format!(
-            "loop shaping at crossover on K_t/(J s + B) (J = {j:.4e} kg·m²{}) × closed current loop × torque filter ({} Hz) × speed hold × encoder PLL: PI zero for the asked phase margin, kp for |L| = 1, crossover solved for the asked −3 dB frequency",
+            "loop shaping at crossover on K_t/(J s + B) (J = {j:.4e} kg·m²{}) × closed current loop × torque filter ({} Hz) × speed hold × encoder PLL: PI zero for the asked phase margin, kp for |L| = 1, crossover solved for the asked −3 dB frequency of the reference response; setpoint weight b = {:.3} for the asked overshoot",
             if with_rod_mode { ", with the rod's axial mode" } else { ", rigid" },
-            plant.torque_filter_hz
+            plant.torque_filter_hz,
+            sp.weight
         ),
     };
     let position = LoopDesign {
@@ -202,10 +240,11 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, with_r
         asked_phase_margin_deg: None,
         model_bandwidth_hz: pbw,
         margins: pm,
-        model_overshoot_pct: os(StepKind::Position, 1.0),
+        asked_overshoot_pct: Some(asked.position_overshoot_pct),
+        model_overshoot_pct: os(StepKind::Position, model::position_step_duration_s(asked.position_bw_hz)),
         rule: "P on K_p T_ω(s)/s through the 1 kHz hold; K_p solved for the asked −3 dB frequency".into(),
     };
-    Ok(Proposal { asked, plant, current, speed, position, rod_mode: mode, params: p })
+    Ok(Proposal { asked, plant, current, speed, position, speed_setpoint_weight: sp.weight, rod_mode: mode, params: p })
 }
 
 /// The `[control]` fragment of a proposal: the gains and what the
@@ -214,13 +253,14 @@ pub fn control_fragment(p: &ControlParams) -> String {
     let d = &p.drive_train;
     format!(
         "# Proposed by `host-sim tune propose`; paste into the rig's [control] or apply with `drive param set`.\n\
-         [control]\ntorque_filter_hz = {}\nposition_kp_per_s = {}\n\n\
+         [control]\ntorque_filter_hz = {}\nposition_kp_per_s = {}\nspeed_setpoint_weight = {}\n\n\
          [control.current_pi]\nkp = {}\nki = {}\n\n\
          [control.speed_pi]\nkp = {}\nki = {}\n\n\
          [control.motor]\nphase_resistance_ohm = {}\ninductance_d_h = {}\ninductance_q_h = {}\n\n\
          [control.drive_train]\nrotating_inertia_kg_m2 = {}\nviscous_friction_n_m_s_rad = {}\ncoulomb_friction_n_m = {}\n",
         p.torque_filter_hz,
         p.position_kp_per_s,
+        p.speed_setpoint_weight,
         p.current_pi.kp,
         p.current_pi.ki,
         p.speed_pi.kp,
@@ -242,6 +282,8 @@ pub fn param_set_lines(p: &ControlParams) -> Vec<(String, f32)> {
         ("speed_pi.kp".into(), p.speed_pi.kp),
         ("speed_pi.ki".into(), p.speed_pi.ki),
         ("torque_filter_hz".into(), p.torque_filter_hz),
+        // Not live: set it with the bridge off.
+        ("speed_setpoint_weight".into(), p.speed_setpoint_weight),
         ("position_kp_per_s".into(), p.position_kp_per_s),
         ("drive_train.rotating_inertia_kg_m2".into(), p.drive_train.rotating_inertia_kg_m2),
         ("drive_train.viscous_friction_n_m_s_rad".into(), p.drive_train.viscous_friction_n_m_s_rad),
@@ -249,28 +291,57 @@ pub fn param_set_lines(p: &ControlParams) -> Vec<(String, f32)> {
     ]
 }
 
-/// The check's tests: a step and a chirp per loop.
-pub fn check_specs(asked: &Asked) -> Vec<(Loop, TestSpec)> {
-    let cur_to = (4.0 * asked.current_bw_hz).min(4000.0);
-    let spd_to = (5.0 * asked.speed_bw_hz).min(1000.0);
-    let pos_to = (5.0 * asked.position_bw_hz).min(100.0);
+/// The check's tests: a step and a chirp per loop, sized for the gains
+/// (the current step on the d axis: on q it accelerates the rotor, and the
+/// back-EMF feedforward's 1.5-period lag turns the acceleration into a
+/// current error of `1.5 T p ψ α / R`, ≈ 2 % of the step; that is the loop's
+/// disturbance response, not its reference response)
+/// (`hold_a`: the q current holding the load). The chirps start a decade
+/// below the asked bandwidth and end 4–5 times above it; the steps and the
+/// speed chirp are as large as a 6 A swing of the speed PI allows (up to
+/// 100 rad/s), so that Coulomb friction (≈ 1.7 A) stays a small part of the
+/// response.
+pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, TestSpec)> {
+    let pwm = f64::from(p.rates.pwm_frequency_hz);
+    let samples = |signals: f64| (servo_core::capture::CAPTURE_STORE_CELLS as f64 / signals).floor();
     let dec = |to: f64, dur: f64, signals: f64| -> u16 {
         // Finest sampling the store allows for the duration, at least
         // 2.5 × the end frequency.
-        let fit = (1.1 * dur * 20_000.0 / (4096.0 / signals)).ceil() as u16;
-        let need = (20_000.0 / (2.5 * to)).floor() as u16;
+        let fit = (1.1 * dur * pwm / samples(signals)).ceil() as u16;
+        let need = (pwm / (2.5 * to)).floor() as u16;
         fit.max(1).min(need.max(1))
     };
-    let cur_dur = 0.2;
-    let spd_dur = 2.0;
-    let pos_dur = 3.6;
+    // The whole sweep and its settling must fit the store at that sampling
+    // (the FRF needs the record to end at rest): shortened if not.
+    let fit_dur = |to: f64, dur: f64, signals: f64| -> f64 {
+        let d = f64::from(dec(to, dur, signals));
+        dur.min(0.95 * samples(signals) * d / (1.1 * pwm))
+    };
+    let (cb, sb, pb) = (asked.current_bw_hz, asked.speed_bw_hz, asked.position_bw_hz);
+    let (cur_from, cur_to) = (cb / 10.0, (4.0 * cb).min(0.2 * pwm));
+    let (spd_from, spd_to) = (sb / 4.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
+    let (pos_from, pos_to) = (pb / 4.0, (5.0 * pb).min(0.1 * pwm / f64::from(p.rates.position_loop_divider)));
+    let cur_dur = fit_dur(cur_to, (4.0 / cur_from).clamp(0.1, 0.4), 3.0);
+    let spd_dur = fit_dur(spd_to, (4.0 / spd_from).clamp(2.0, 8.0), 3.0);
+    let pos_dur = fit_dur(pos_to, (4.0 / pos_from).clamp(2.0, 12.0), 3.0);
+    let current_room = (f64::from(p.current_limit_a()) - hold_a.abs()).max(2.0);
+    // The d-axis step needs no room for motion; the q chirp rides on the hold.
+    let cur_amp = (0.4 * current_room).min(8.0);
+    let spd_amp = (10.0 / f64::from(p.speed_pi.kp)).clamp(10.0, 100.0).min(0.3 * f64::from(p.limits.speed_max_rad_s));
+    // The position loop runs under a speed chirp: its lowest frequency may
+    // move the rod by at most half the following-error bound.
+    let chirp_travel_rad = 0.5 * f64::from(p.faults.position_following_error_m) / f64::from(p.metres_per_rad());
+    let spd_chirp_amp = spd_amp.min(chirp_travel_rad * std::f64::consts::TAU * spd_from);
+    // Half the following-error bound: the friction's creep at rest (tens of
+    // µm) stays a small share of it.
+    let pos_amp = 0.5 * f64::from(p.faults.position_following_error_m);
     vec![
-        (Loop::Current, TestSpec::step(Loop::Current, 4.0, 0.02)),
-        (Loop::Current, TestSpec::chirp(Loop::Current, 2.0, 50.0, cur_to, cur_dur, dec(cur_to, cur_dur, 2.0))),
-        (Loop::Speed, TestSpec::step(Loop::Speed, 10.0, 0.25)),
-        (Loop::Speed, TestSpec::chirp(Loop::Speed, 30.0, 5.0, spd_to, spd_dur, dec(spd_to, spd_dur, 2.0))),
-        (Loop::Position, TestSpec::step(Loop::Position, 0.001, 0.5)),
-        (Loop::Position, TestSpec::chirp(Loop::Position, 0.0005, 0.5, pos_to, pos_dur, dec(pos_to, pos_dur, 2.0))),
+        (Loop::Current, TestSpec::current_step_d(cur_amp, 0.02)),
+        (Loop::Current, TestSpec::chirp(Loop::Current, 0.5 * (0.25 * current_room).min(8.0), cur_from, cur_to, cur_dur, dec(cur_to, cur_dur, 3.0))),
+        (Loop::Speed, TestSpec::step(Loop::Speed, spd_amp, model::speed_step_duration_s(sb))),
+        (Loop::Speed, TestSpec::chirp(Loop::Speed, spd_chirp_amp, spd_from, spd_to, spd_dur, dec(spd_to, spd_dur, 3.0))),
+        (Loop::Position, TestSpec::step(Loop::Position, pos_amp, model::position_step_duration_s(pb))),
+        (Loop::Position, TestSpec::chirp(Loop::Position, 0.4 * f64::from(p.faults.position_following_error_m), pos_from, pos_to, pos_dur, dec(pos_to, pos_dur, 3.0))),
     ]
 }
 
@@ -286,10 +357,11 @@ pub struct CheckResult {
 /// Runs the check's tests on the simulated rig with `params`.
 pub fn check(rig: &RigConfig, params: ControlParams, asked: &Asked, seed: u64) -> Result<Vec<CheckResult>> {
     let mut cl = simcheck::holding(rig, params, X0_M, seed)?;
+    let hold_a = f64::from(cl.controller.telemetry().current_q_a);
     let mut out = Vec::new();
-    for (target, spec) in check_specs(asked) {
+    for (target, spec) in check_specs(asked, &params, hold_a) {
         let c = simcheck::run_test(&mut cl, &spec).map_err(|e| anyhow!("{target:?} {:?}: {e:#}", spec.chirp))?;
-        out.push(CheckResult { target, figures: simcheck::figures(&spec, &c), spec, captured: c });
+        out.push(CheckResult { target, figures: simcheck::figures(&spec, &c, &params), spec, captured: c });
     }
     Ok(out)
 }

@@ -104,7 +104,7 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
         if kind != StepKind::Current && speed_tick {
             let e = w_ref - w_est;
             int_w += g.speed.1 * e * ts;
-            i_ref = tf.update(g.speed.0 * e + int_w);
+            i_ref = tf.update(g.speed.0 * (p.speed_setpoint_weight * w_ref - w_est) + int_w);
         }
         let e = i_ref - i;
         int_i += g.current.1 * e * t;
@@ -144,4 +144,14 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
 pub fn overshoot_pct(y: &[f64], amplitude: f64) -> f64 {
     let peak = y.iter().map(|v| v / amplitude).fold(f64::MIN, f64::max);
     ((peak - 1.0) * 100.0).max(0.0)
+}
+
+/// How long the speed step (test and model) lasts for an asked bandwidth:
+/// long enough to settle.
+pub fn speed_step_duration_s(bw_hz: f64) -> f64 {
+    (3.0 / bw_hz).clamp(0.25, 0.6)
+}
+
+pub fn position_step_duration_s(bw_hz: f64) -> f64 {
+    (3.0 / bw_hz).clamp(0.5, 2.0)
 }

@@ -2,8 +2,11 @@
 //! test signals (`Controller::start_test`) and capture store, in process,
 //! through `sim::ClosedLoop`, sampled as the host tool samples a drive.
 
-use crate::tool::analysis::{frf_figures, h1, step_figures, FrfFigures, StepFigures};
+use super::design::{DesignPlant, Margins};
 use super::identify::Capture;
+use super::measure::{log_grid, step_figures_in, Response};
+use crate::tool::analysis::StepFigures;
+use nalgebra::Complex;
 use crate::config::RigConfig;
 use crate::plant::Plant;
 use crate::sim::{commissioned_control, ClosedLoop};
@@ -12,6 +15,8 @@ use servo_core::capture::CaptureStore;
 use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use servo_core::{Command, ControlParams, Controller, Mode};
 use std::f64::consts::PI;
+
+type C64 = Complex<f64>;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Loop {
@@ -30,12 +35,18 @@ pub struct TestSpec {
     /// Capture decimation (PWM periods per sample).
     pub decimation: u16,
     pub signals: Vec<&'static str>,
+    /// A current step on the d axis (no torque, so no motion and no
+    /// back-EMF: the current PI alone, as it serves both axes).
+    pub axis_d: bool,
 }
 
 fn signal(n: &str) -> Signal {
     match n {
         "current_q" => Signal::CurrentQ,
         "current_q_reference" => Signal::CurrentQReference,
+        "current_d" => Signal::CurrentD,
+        "current_d_reference" => Signal::CurrentDReference,
+        "voltage_d" => Signal::VoltageD,
         "voltage_q" => Signal::VoltageQ,
         "speed" => Signal::Speed,
         "speed_reference" => Signal::SpeedReference,
@@ -57,24 +68,32 @@ impl TestSpec {
         let max = (servo_core::capture::CAPTURE_STORE_CELLS / 4) as f64;
         let periods = 1.1 * duration_s * 20_000.0;
         let decimation = base.max((periods / max).ceil() as u16);
-        TestSpec { target, amplitude, duration_s, chirp: None, decimation, signals }
+        TestSpec { target, amplitude, duration_s, chirp: None, decimation, signals, axis_d: false }
     }
 
-    /// A chirp: reference and response only (twice the samples), as the
-    /// host tool's `drive chirp`.
+    /// A d-axis current step, captured every PWM period: reference,
+    /// response, voltage and speed.
+    pub fn current_step_d(amplitude: f64, duration_s: f64) -> Self {
+        let signals = vec!["current_d_reference", "current_d", "voltage_d", "speed"];
+        TestSpec { signals, axis_d: true, ..Self::step(Loop::Current, amplitude, duration_s) }
+    }
+
+    /// A chirp: reference, response and the loop's controller output (the
+    /// q voltage, the q-current reference, the speed reference), from which
+    /// the open loop `L = C·P` is measured (`measure`).
     pub fn chirp(target: Loop, amplitude: f64, from_hz: f64, to_hz: f64, duration_s: f64, decimation: u16) -> Self {
         let signals = match target {
-            Loop::Current => vec!["current_q_reference", "current_q"],
-            Loop::Speed => vec!["speed_reference", "speed"],
-            Loop::Position => vec!["position_command", "motor_position"],
+            Loop::Current => vec!["current_q_reference", "current_q", "voltage_q"],
+            Loop::Speed => vec!["speed_reference", "speed", "current_q_reference"],
+            Loop::Position => vec!["position_command", "motor_position", "speed_reference"],
         };
-        TestSpec { target, amplitude, duration_s, chirp: Some((from_hz, to_hz)), decimation, signals }
+        TestSpec { target, amplitude, duration_s, chirp: Some((from_hz, to_hz)), decimation, signals, axis_d: false }
     }
 
     fn test_signal(&self) -> TestSignal {
         let (a, d) = (self.amplitude as f32, self.duration_s as f32);
         match (self.chirp, self.target) {
-            (None, Loop::Current) => TestSignal::CurrentStep { axis_q: true, amplitude_a: a, duration_s: d },
+            (None, Loop::Current) => TestSignal::CurrentStep { axis_q: !self.axis_d, amplitude_a: a, duration_s: d },
             (None, Loop::Speed) => TestSignal::SpeedStep { amplitude_rad_s: a, duration_s: d },
             (None, Loop::Position) => TestSignal::PositionStep { distance_m: a, duration_s: d },
             (Some((f0, f1)), t) => TestSignal::Chirp {
@@ -189,36 +208,65 @@ pub fn run_test(cl: &mut ClosedLoop, spec: &TestSpec) -> Result<Captured> {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct TestFigures {
     pub step: Option<StepFigures>,
-    pub frf: Option<FrfFigures>,
-    /// The −3 dB frequency interpolated between FRF bins (the host tool's
-    /// `bandwidth_3db_hz` is the first bin below).
-    pub bandwidth_3db_interp_hz: Option<f64>,
+    /// The closed loop's −3 dB frequency (`measure::Response::bandwidth_3db_hz`
+    /// against 0 dB).
+    pub bandwidth_3db_hz: Option<f64>,
+    /// Gain of the closed loop at the chirp's lowest frequency, dB.
+    pub low_frequency_gain_db: Option<f64>,
+    /// Margins of the measured open loop `L = C·Y/U`.
+    pub margins: Option<Margins>,
+    /// The measured closed loop on the grid (Hz, dB, degrees).
+    pub frf: Option<Vec<(f64, f64, f64)>>,
 }
 
-pub fn figures(spec: &TestSpec, c: &Captured) -> TestFigures {
+/// The loop's regulator as the core computes it, from its output `u` back to
+/// the fed-back error: the current PI (per PWM period), the speed PI and the
+/// torque filter (per speed period), the position P (rad/s per metre).
+pub fn regulator(target: Loop, p: &ControlParams, plant: &DesignPlant, w: f64) -> C64 {
+    match target {
+        Loop::Current => {
+            let t = plant.t_pwm();
+            let z = C64::new((w * t).cos(), (w * t).sin());
+            C64::from(f64::from(p.current_pi.kp)) + z * (f64::from(p.current_pi.ki) * t) / (z - 1.0)
+        }
+        Loop::Speed => plant.speed_pi(f64::from(p.speed_pi.kp), f64::from(p.speed_pi.ki), w) * plant.torque_filter(w),
+        Loop::Position => C64::from(f64::from(p.position_kp_per_s) / f64::from(p.metres_per_rad())),
+    }
+}
+
+pub fn figures(spec: &TestSpec, c: &Captured, p: &ControlParams) -> TestFigures {
     let cap = &c.capture;
     let (x, y) = (&cap.columns[0], &cap.columns[1]);
+    let t0 = c.trigger_index as f64 * cap.dt_s;
     match spec.chirp {
-        None => {
-            let t0 = c.trigger_index as f64 * cap.dt_s;
-            TestFigures { step: Some(step_figures(y, cap.dt_s, t0, spec.amplitude)), frf: None, bandwidth_3db_interp_hz: None }
-        }
+        None => TestFigures {
+            step: Some(step_figures_in(y, cap.dt_s, t0, spec.duration_s, spec.amplitude)),
+            bandwidth_3db_hz: None,
+            low_frequency_gain_db: None,
+            margins: None,
+            frf: None,
+        },
         Some((f0, f1)) => {
-            let k0 = c.trigger_index;
-            let frf = h1(&x[k0..], &y[k0..], cap.dt_s, 1024);
-            let figs = frf_figures(&frf, f0, f1);
-            let idx: Vec<usize> = (0..frf.freq_hz.len())
-                .filter(|&k| frf.freq_hz[k] >= f0 && frf.freq_hz[k] <= f1 && frf.coherence[k] >= 0.8)
-                .collect();
-            let interp = idx.first().and_then(|&first| {
-                let g0 = frf.gain_db[first];
-                idx.windows(2).find(|w| frf.gain_db[w[1]] < g0 - 3.0).map(|w| {
-                    let (a, b) = (frf.gain_db[w[0]] - (g0 - 3.0), frf.gain_db[w[1]] - (g0 - 3.0));
-                    let s = a / (a - b);
-                    frf.freq_hz[w[0]] + s * (frf.freq_hz[w[1]] - frf.freq_hz[w[0]])
-                })
+            let grid = log_grid(f0, f1, 240);
+            let rest = c.trigger_index;
+            let t = Response::ratio(x, y, rest, cap.dt_s, grid.clone());
+            let plant = DesignPlant::from_params(p, f64::from(p.reflected_inertia_kg_m2()), 0.0);
+            let margins = cap.columns.get(2).map(|u| {
+                let pl = Response::ratio(u, y, rest, cap.dt_s, grid.clone());
+                let l = Response {
+                    h: pl.h.iter().zip(&grid).map(|(h, f)| h * regulator(spec.target, p, &plant, std::f64::consts::TAU * f)).collect(),
+                    freq_hz: grid.clone(),
+                };
+                l.margins()
             });
-            TestFigures { step: None, frf: Some(figs), bandwidth_3db_interp_hz: interp }
+            let g = t.gain_db();
+            TestFigures {
+                step: None,
+                bandwidth_3db_hz: t.bandwidth_3db_hz(1.0),
+                low_frequency_gain_db: g.first().copied(),
+                margins,
+                frf: Some(grid.iter().zip(&g).zip(&t.h).map(|((f, g), h)| (*f, *g, h.arg().to_degrees())).collect()),
+            }
         }
     }
 }
