@@ -24,6 +24,11 @@ impl Drive {
         o.pace = Pace::Fast;
         o.commissioned = true;
         o.store = store;
+        // Lock-step holds a stream's timeline whatever the host's load, up
+        // to this wall-clock stall of the client (the default 0.25 s was
+        // exceeded by a test thread descheduled on a loaded 2-core CI
+        // machine: the stream then ran free and the tracking test failed).
+        o.stream_idle_s = 2.0;
         let (addr, stop, h) = drive::spawn_local(o).unwrap();
         Self { addr, stop, thread: Some(h) }
     }
