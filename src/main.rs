@@ -27,6 +27,7 @@
 mod board;
 mod hal_log;
 mod masking;
+mod udiv;
 
 use board::active as hw;
 use board::drive::{BoardDrive, ParamsCache};
