@@ -387,6 +387,9 @@ impl Controller {
     }
 
     /// True while a planned move has time left or a stream runs.
+    // Out of line: five callers (commands, the brake, the board's snapshot
+    // every 20th period), none in `current_period`.
+    #[inline(never)]
     pub fn move_in_progress(&self) -> bool {
         self.stream.active() || self.commanded_stop || self.move_time_s() < self.trajectory.duration_s()
     }
