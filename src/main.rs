@@ -27,6 +27,7 @@
 mod board;
 mod hal_log;
 mod masking;
+mod mem;
 mod udiv;
 
 use board::active as hw;
