@@ -252,9 +252,30 @@ const fn homing_method(index: u8) -> Option<HomingMethod> {
     }
 }
 
+/// [`LEAVES`] as the image holds it, offsets and kinds apart: three bytes
+/// a leaf instead of four (`Leaf` pads its `u16` and one-byte kind).
+static OFFSETS: [u16; LEAF_COUNT] = {
+    let mut out = [0u16; LEAF_COUNT];
+    let mut i = 0;
+    while i < LEAF_COUNT {
+        out[i] = LEAVES[i].offset;
+        i += 1;
+    }
+    out
+};
+static KINDS: [ValueKind; LEAF_COUNT] = {
+    let mut out = [ValueKind::F32; LEAF_COUNT];
+    let mut i = 0;
+    while i < LEAF_COUNT {
+        out[i] = LEAVES[i].kind;
+        i += 1;
+    }
+    out
+};
+
 /// Leaf `index`, if there is one.
 pub fn leaf(index: usize) -> Option<Leaf> {
-    LEAVES.get(index).copied()
+    Some(Leaf { offset: *OFFSETS.get(index)?, kind: *KINDS.get(index)? })
 }
 
 /// The value of leaf `index` of `p`.
