@@ -1,11 +1,12 @@
-//! Compact `memcpy` and `__aeabi_memclr4/8` for the image.
+//! Compact `memcpy`, `__aeabi_memclr4/8` and `memcmp` for the image.
 //!
 //! compiler_builtins' are built for speed: `memcpy` alone is 730 B (every
 //! alignment case unrolled), `__aeabi_memcpy4` 156 B, `__aeabi_memclr4`
 //! and `__aeabi_memclr8` 174 B each. These are a word loop when source and
 //! destination are both word-aligned (every struct copy in the image: the
 //! parameter set, the controller's records, the snapshot) and a byte loop
-//! otherwise, ≈ 80 B in all. compiler_builtins defines its memory routines
+//! otherwise, ≈ 80 B in all; `memcmp` (116 B there; its callers are the
+//! flash record's magic and the server's schema checks) a byte loop. compiler_builtins defines its memory routines
 //! as weak symbols, so the linker takes these.
 //!
 //! Cost: a word takes one `ldr`/`str` pair and a compare and branch, about
@@ -70,4 +71,24 @@ core::arch::global_asm!(
     ".size __aeabi_memclr4, . - __aeabi_memclr4",
     ".global __aeabi_memclr8",
     ".thumb_set __aeabi_memclr8, __aeabi_memclr4",
+    "",
+    ".section .text.memcmp,\"ax\",%progbits",
+    ".global memcmp",
+    ".type memcmp,%function",
+    ".thumb_func",
+    // r0, r1 = the two blocks, r2 = length; the first differing bytes'
+    // difference (as unsigned bytes), 0 if none.
+    "memcmp:",
+    "    cbz   r2, 2f",
+    "1:  ldrb  r3, [r0], #1",
+    "    ldrb  r12, [r1], #1",
+    "    subs  r3, r3, r12",
+    "    bne   3f",
+    "    subs  r2, r2, #1",
+    "    bne   1b",
+    "2:  movs  r0, #0",
+    "    bx    lr",
+    "3:  mov   r0, r3",
+    "    bx    lr",
+    ".size memcmp, . - memcmp",
 );
