@@ -27,6 +27,8 @@
 mod board;
 mod hal_log;
 mod masking;
+mod mem;
+mod udiv;
 
 use board::active as hw;
 use board::drive::{BoardDrive, ParamsCache};

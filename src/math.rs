@@ -155,16 +155,18 @@ pub fn cbrt(x: f32) -> f32 {
     if x < 0.0 { -y } else { y }
 }
 
-/// e^x for x ≤ 0 down to about −87 (the observer's Gaussians): 2^(x·log₂e)
+/// e^x for x ≤ 0 down to about −87 (the chirp's `k^{n/N}`): 2^(x·log₂e)
 /// split into the nearest integer power n, set in the exponent bits, and a
 /// degree-7 Taylor polynomial of e^r for r = x − n ln 2, |r| ≤ ½ ln 2.
-/// Relative error ≈ 1e-7; below −87 (or NaN) gives 0.
+/// Relative error ≈ 1e-7; below −87 (or NaN) gives 0. A positive x (a
+/// rounding above 0 at the sweep's end) takes the same path up to 88
+/// (n ≤ 127), +∞ above: no libm `expf` in the image (≈ 0.5 KB).
 pub fn exp_neg(x: f32) -> f32 {
     if !(x > -87.0) {
         return 0.0;
     }
-    if x > 0.0 {
-        return libm::expf(x);
+    if x > 88.0 {
+        return f32::INFINITY;
     }
     // Cody–Waite: ln 2 in two parts, the first exact in few bits, so the
     // reduced argument keeps full precision.
@@ -174,7 +176,7 @@ pub fn exp_neg(x: f32) -> f32 {
     let l = (x - n * LN2_HI) - n * LN2_LO;
     let p = 1.0
         + l * (1.0 + l * (0.5 + l * (1.0 / 6.0 + l * (1.0 / 24.0 + l * (1.0 / 120.0 + l * (1.0 / 720.0 + l * (1.0 / 5040.0)))))));
-    // n ∈ [−126, 0]: a normal power of two.
+    // n ∈ [−126, 127]: a normal power of two.
     let bits = ((n as i32).wrapping_add(127) as u32) << 23;
     p * f32::from_bits(bits)
 }

@@ -23,7 +23,6 @@ use cortex_m::peripheral::DWT;
 use servo_core::mailbox::{Handoff, Slot, SlotReceiver, SlotSender, TripleBuffer, TripleReader, TripleWriter};
 use servo_core::controller::ApplyError;
 use servo_core::protocol::drive::on_controller;
-use servo_core::protocol::CaptureReply;
 use servo_core::capture::{CaptureLayout, CaptureStore};
 use servo_core::params::ValidatedParams;
 use servo_core::protocol::{CaptureRequest, CaptureStatus, Reason, Signal, TestSignal, CAPTURE_SIGNALS_MAX};
@@ -378,16 +377,21 @@ impl IsrLink {
                 Ok(()) => BulkOut::Done,
                 Err(e) => BulkOut::Refused(e),
             },
-            (Request::Bulk, Some(BulkIn::Capture(CaptureOp::Layout))) => match c.capture_layout() {
-                Ok(l) => BulkOut::CaptureLayout(l),
-                Err(e) => BulkOut::Refused(e),
-            },
-            (Request::Bulk, Some(BulkIn::Capture(op))) => match op.request().map(|r| on_controller::capture(c, &r)) {
-                Some(Ok(CaptureReply::Status(s))) => BulkOut::CaptureStatus(s),
-                Some(Ok(_)) => BulkOut::Done,
-                Some(Err(e)) => BulkOut::Refused(e),
-                None => return Reply::Refused,
-            },
+            // The controller's capture calls directly (what
+            // `on_controller::capture` does for these three, without its
+            // `Read` arm, which thread mode serves from the store).
+            (Request::Bulk, Some(BulkIn::Capture(op))) => {
+                let done = match op {
+                    CaptureOp::Layout => c.capture_layout().map(BulkOut::CaptureLayout),
+                    CaptureOp::Status => Ok(BulkOut::CaptureStatus(c.capture_status())),
+                    CaptureOp::Trigger => c.capture_trigger().map(|()| BulkOut::Done),
+                    CaptureOp::Configure { .. } => match op.request() {
+                        Some(CaptureRequest::Configure(config)) => c.capture_configure(&config).map(|()| BulkOut::Done),
+                        _ => return Reply::Refused,
+                    },
+                };
+                done.unwrap_or_else(BulkOut::Refused)
+            }
             _ => return Reply::Refused,
         };
         // A stale answer nobody collected is replaced.

@@ -53,6 +53,11 @@ macro_rules! leaves {
             offset: offset_of!(ControlParams, $($f).+) as u16,
             kind: kind_of(&ControlParams::DEFAULT.$($f).+),
         },)*];
+        /// [`LEAVES`] as the image holds it, offsets and kinds apart: three
+        /// bytes a leaf instead of four (`Leaf` pads its `u16` and one-byte
+        /// kind).
+        static OFFSETS: [u16; LEAF_COUNT] = [$(offset_of!(ControlParams, $($f).+) as u16,)*];
+        static KINDS: [ValueKind; LEAF_COUNT] = [$(kind_of(&ControlParams::DEFAULT.$($f).+),)*];
         /// Number of parameters.
         pub const LEAF_COUNT: usize = PATHS.len();
         /// The leaves' paths, for the host and compile-time messages.
@@ -255,7 +260,7 @@ const fn homing_method(index: u8) -> Option<HomingMethod> {
 
 /// Leaf `index`, if there is one.
 pub fn leaf(index: usize) -> Option<Leaf> {
-    LEAVES.get(index).copied()
+    Some(Leaf { offset: *OFFSETS.get(index)?, kind: *KINDS.get(index)? })
 }
 
 /// The value of leaf `index` of `p`.

@@ -71,8 +71,10 @@ enum Check {
 /// check.
 #[derive(Clone, Copy, Debug)]
 struct Rule {
-    leaf: u16,
     offset: u16,
+    /// The leaf's index (< 256, checked per row): with the one-byte check
+    /// a row is 4 bytes, not 6.
+    leaf: u8,
     check: Check,
 }
 
@@ -80,7 +82,9 @@ struct Rule {
 macro_rules! rule {
     ($check:ident, $ty:ty, $($f:ident).+) => {{
         const _: $ty = ControlParams::DEFAULT.$($f).+;
-        Rule { leaf: leaf!($($f).+), offset: core::mem::offset_of!(ControlParams, $($f).+) as u16, check: Check::$check }
+        const LEAF: u16 = leaf!($($f).+);
+        const _: () = assert!(LEAF <= u8::MAX as u16, "leaf index beyond a rule's byte");
+        Rule { leaf: LEAF as u8, offset: core::mem::offset_of!(ControlParams, $($f).+) as u16, check: Check::$check }
     }};
 }
 macro_rules! positive {
@@ -204,7 +208,7 @@ const fn check_rules(p: &ControlParams) -> Result<(), ParamError> {
     let mut rest = RULES;
     while let [rule, tail @ ..] = rest {
         let at = base.wrapping_add(rule.offset as usize);
-        let leaf = rule.leaf;
+        let leaf = rule.leaf as u16;
         // SAFETY: `offset` is `offset_of!` of a field of `ControlParams`
         // whose type the `rule!` row checked to be the one read here (`f32`
         // for the float checks, `u32` for `NonZero`): an initialised,

@@ -168,17 +168,12 @@ macro_rules! fault_names {
             pub const ALL: [(Self, &'static str); 29] = [$((Self::$bit, stringify!($name)),)*];
         }
 
+        /// Only its defmt format string is used (see [`FaultIndex`]).
         #[cfg(feature = "defmt")]
-        #[allow(non_camel_case_types)]
+        #[allow(non_camel_case_types, dead_code)]
         #[derive(Clone, Copy, defmt::Format)]
         enum FaultName {
             $($name,)*
-        }
-
-        #[cfg(feature = "defmt")]
-        impl FaultName {
-            /// Bit `i` of a [`FaultSet`] is named by `ALL[i]`.
-            const ALL: [Self; 29] = [$(Self::$name,)*];
         }
     };
 }
@@ -215,7 +210,7 @@ fault_names! {
     STREAM_TIMEOUT => stream_timeout,
 }
 
-// `ALL` (and so `FaultName::ALL`) is in bit order: bit i is named by entry i.
+// `ALL` (and so `FaultName`, whose variant i names bit i) is in bit order.
 const _: () = {
     let mut rest: &[(FaultSet, &str)] = &FaultSet::ALL;
     let mut bit = 1u32;
@@ -235,15 +230,36 @@ impl defmt::Format for FaultSet {
         }
         let mut first = true;
         let mut bit = 1u32;
-        for name in FaultName::ALL.iter() {
+        for index in 0..FaultSet::ALL.len() as u8 {
             if self.0 & bit != 0 {
                 if !first {
                     defmt::write!(f, "|");
                 }
                 first = false;
-                defmt::write!(f, "{}", name);
+                defmt::write!(f, "{}", FaultIndex(index));
             }
             bit = bit.wrapping_shl(1);
         }
+    }
+}
+
+/// Bit `i` of a [`FaultSet`], logged as `FaultName`'s variant `i` (the
+/// same bytes as the derive writes for that variant, without the derive's
+/// table of pointers to one constant per variant).
+#[cfg(feature = "defmt")]
+struct FaultIndex(u8);
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for FaultIndex {
+    fn format(&self, _f: defmt::Formatter) {
+        defmt::unreachable!()
+    }
+
+    fn _format_tag() -> defmt::Str {
+        <FaultName as defmt::Format>::_format_tag()
+    }
+
+    fn _format_data(&self) {
+        defmt::export::u8(&self.0);
     }
 }
