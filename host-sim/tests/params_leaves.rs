@@ -106,3 +106,29 @@ fn crc32(bytes: &[u8]) -> u32 {
     }
     !c
 }
+
+/// The single-leaf checks are packed rows (offset, leaf, check in 16
+/// bits): a NaN put into any `f32` leaf through the leaf table is refused
+/// as "must be finite" naming that very leaf, or not by a finiteness check
+/// at all (the leaf has no rule); and enough leaves are covered that a
+/// broken unpacking could not hide.
+#[test]
+fn a_nan_in_any_float_leaf_is_refused_naming_that_leaf() {
+    let mut named = 0;
+    for i in 0..LEAF_COUNT {
+        let mut p = ControlParams::DEFAULT;
+        if !matches!(leaves::get(&p, i), Some(Value::F32(_))) {
+            continue;
+        }
+        leaves::set(&mut p, i, Value::F32(f32::NAN)).unwrap();
+        match p.validate() {
+            Err(e) if e.reason == servo_core::protocol::Reason::MustBeFinite => {
+                assert_eq!(usize::from(e.leaf), i, "NaN in {} named {}", leaves::path(i), e.field());
+                named += 1;
+            }
+            _ => {}
+        }
+    }
+    println!("{named} float leaves refuse NaN by name");
+    assert!(named >= 80, "{named}");
+}

@@ -55,36 +55,52 @@ impl ValidatedParams {
 
 /// A check of one leaf on its own (the checks between fields are code,
 /// below). Most of `validate` is these, so they are a table walked by one
-/// loop: as ≈ 100 calls they were ≈ 1.5 KB of the image, as rows 4 bytes
+/// loop: as ≈ 100 calls they were ≈ 1.5 KB of the image, as rows 2 bytes
 /// each.
 #[derive(Clone, Copy, Debug)]
 enum Check {
     /// An `f32` leaf, finite and > 0.
-    Positive,
+    Positive = 0,
     /// An `f32` leaf, finite and >= 0.
-    NonNegative,
+    NonNegative = 1,
     /// A `u32` leaf, >= 1.
-    NonZero,
+    NonZero = 2,
 }
 
-/// One row: the leaf (index for the error, byte offset to read it) and its
-/// check.
+/// One row, packed in 16 bits: the leaf's byte offset in words (bits
+/// 0–6: every checked leaf is a 4-byte `f32`/`u32`, and the struct is
+/// < 512 B), its index for the error (bits 7–13) and the check (bits
+/// 14–15). The packing is checked per row at compile time.
 #[derive(Clone, Copy, Debug)]
-struct Rule {
-    offset: u16,
-    /// The leaf's index (< 256, checked per row): with the one-byte check
-    /// a row is 4 bytes, not 6.
-    leaf: u8,
-    check: Check,
+struct Rule(u16);
+
+impl Rule {
+    const fn new(offset: usize, leaf: u16, check: Check) -> Self {
+        assert!(offset % 4 == 0 && offset / 4 < 128, "a checked leaf's offset does not fit a rule");
+        assert!(leaf < 128, "leaf index beyond a rule's 7 bits");
+        Self((offset / 4) as u16 | leaf << 7 | (check as u16) << 14)
+    }
+    const fn offset(self) -> usize {
+        (self.0 & 0x7f) as usize * 4
+    }
+    const fn leaf(self) -> u16 {
+        (self.0 >> 7) & 0x7f
+    }
+    const fn check(self) -> Check {
+        match self.0 >> 14 {
+            0 => Check::Positive,
+            1 => Check::NonNegative,
+            _ => Check::NonZero,
+        }
+    }
 }
 
 /// A row; the `const _` makes the leaf's type the one the check reads.
 macro_rules! rule {
     ($check:ident, $ty:ty, $($f:ident).+) => {{
         const _: $ty = ControlParams::DEFAULT.$($f).+;
-        const LEAF: u16 = leaf!($($f).+);
-        const _: () = assert!(LEAF <= u8::MAX as u16, "leaf index beyond a rule's byte");
-        Rule { leaf: LEAF as u8, offset: core::mem::offset_of!(ControlParams, $($f).+) as u16, check: Check::$check }
+        const R: Rule = Rule::new(core::mem::offset_of!(ControlParams, $($f).+), leaf!($($f).+), Check::$check);
+        R
     }};
 }
 macro_rules! positive {
@@ -207,18 +223,20 @@ const fn check_rules(p: &ControlParams) -> Result<(), ParamError> {
     let base = (p as *const ControlParams).cast::<u8>();
     let mut rest = RULES;
     while let [rule, tail @ ..] = rest {
-        let at = base.wrapping_add(rule.offset as usize);
-        let leaf = rule.leaf as u16;
-        // SAFETY: `offset` is `offset_of!` of a field of `ControlParams`
+        let at = base.wrapping_add(rule.offset());
+        let leaf = rule.leaf();
+        let check = rule.check();
+        // SAFETY: `offset()` is `offset_of!` of a field of `ControlParams`
+        // (packed and unpacked exactly: `Rule::new` checks it)
         // whose type the `rule!` row checked to be the one read here (`f32`
         // for the float checks, `u32` for `NonZero`): an initialised,
         // aligned value inside `*p`.
-        let bad = match rule.check {
+        let bad = match check {
             Check::Positive | Check::NonNegative => {
                 let v = unsafe { *at.cast::<f32>() };
                 if !v.is_finite() {
                     Some(Reason::MustBeFinite)
-                } else if matches!(rule.check, Check::Positive) && v <= 0.0 {
+                } else if matches!(check, Check::Positive) && v <= 0.0 {
                     Some(Reason::MustBePositive)
                 } else if v < 0.0 {
                     Some(Reason::MustBeNonNegative)
