@@ -54,13 +54,13 @@ pub(super) fn table2(ds: &Dataset, opts: &TrainOptions) -> Result<Vec<Table2Row>
                     SplitSpec::Opposite { train: Direction::Elongation },
                     SplitSpec::Opposite { train: Direction::Contraction },
                 ],
-                _ => vec![opts.split.clone()],
+                _ => vec![opts.split],
             };
             let mut acc = [0.0f64; 6];
             for split in &splits {
                 let mut o = opts.clone();
                 o.kind = kind;
-                o.split = split.clone();
+                o.split = *split;
                 o.progress = false;
                 let r = train_dataset(ds, &o)?;
                 let (b, a) = (&r.test_uncompensated, &r.test);

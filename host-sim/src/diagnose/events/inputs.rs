@@ -187,14 +187,14 @@ pub fn binned_cv(
     let mut rows: Vec<(f64, f64, usize)> = Vec::new(); // (input, weighted remainder, fold)
     for (s, r) in segs.iter().zip(rem) {
         let Some(x) = &r[c] else { continue };
-        for i in 0..s.len() {
+        for (i, xi) in x.iter().enumerate().take(s.len()) {
             let w = s.weight(c, i);
             if w <= 0.0 {
                 continue;
             }
             rows.push((
                 input(s, i),
-                w * x[i],
+                w * xi,
                 ((s.t_rel[i] / CV_BLOCK_S) as usize) % 2,
             ));
         }
