@@ -386,6 +386,12 @@ pub fn analyse(
         && acf_p >= PERIODIC_ACF
         && acf_p >= ACF_SIGNIFICANCE_Z * acf_se
         && !motion_cycle
+        // The periodic part carries about `acf_p` of what the inputs leave,
+        // `acf_p · (100 − input_r2)` % of the energy: the period names the
+        // remainder only if that is at least what the inputs explain. (A
+        // signal logged late by τ leaves `−τ ẏ`, which the inputs'
+        // derivatives explain; what they leave of it repeats with the moves.)
+        && acf_p * (100.0 - input_r2_pct) >= input_r2_pct
     {
         (
             "periodic",
