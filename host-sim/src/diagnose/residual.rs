@@ -7,10 +7,25 @@
 //! compared with the scale (position channel); the q-axis voltage the nominal
 //! motor needs, compared with the logged command (voltage channel). No
 //! simulation, so no drift: friction, load and inertia gaps show directly.
+//!
+//! The nominal model (`physics`, `regression`), the differentiation
+//! (`savitzky_golay`) and the lost-motion shapes (`lost_motion`) live in
+//! the submodules; this file holds the channels, the segment and its
+//! builder.
+
+mod lost_motion;
+mod physics;
+mod regression;
+mod savitzky_golay;
+
+pub use lost_motion::*;
+pub use physics::*;
+use regression::reg_features;
+pub use regression::*;
+use savitzky_golay::sg;
+pub use savitzky_golay::*;
 
 use super::log::Log;
-use crate::config::RigConfig;
-use crate::plant::Compliance;
 use anyhow::{bail, Result};
 
 pub const TORQUE: usize = 0;
@@ -18,168 +33,6 @@ pub const POSITION: usize = 1;
 pub const VOLTAGE: usize = 2;
 pub const NCH: usize = 3;
 pub const CHANNELS: [&str; NCH] = ["torque", "position", "voltage"];
-
-/// The rig's nominal rigid-body model, from the simulator's `[plant]`.
-#[derive(Clone, Debug)]
-pub struct Physics {
-    /// Torque constant `1.5 p ψ_f`, N·m/A.
-    pub kt: f64,
-    pub pole_pairs: f64,
-    pub flux_wb: f64,
-    pub r_ohm: f64,
-    pub l_q_h: f64,
-    /// Rotating inertia (rotor + coupling + screw), kg·m².
-    pub j_rot: f64,
-    /// Metres per radian, `L/2π`.
-    pub k: f64,
-    /// Moving mass (nut + rod + payload), kg.
-    pub m_moving: f64,
-    /// Viscous friction at the motor, rod viscous reflected, N·m·s/rad.
-    pub b_rot: f64,
-    /// Screw efficiency friction coefficient `(1−η)/η`.
-    pub mu: f64,
-    pub drag_n_m: f64,
-    pub rod_coulomb_n: f64,
-    pub rod_static_n: f64,
-    /// Rod seal viscous friction (also inside `b_rot`), N·s/m.
-    pub rod_viscous_n_s_m: f64,
-    /// Structural damping across the axial compliance, N·s/m.
-    pub axial_damping_n_s_m: f64,
-    /// Screw inertia (inside `j_rot`), kg·m², and its bearings' viscous
-    /// friction (inside `b_rot`), N·m·s/rad.
-    pub j_screw: f64,
-    pub b_screw: f64,
-    pub stribeck_m_s: f64,
-    pub gravity: f64,
-    pub tilt_deg: f64,
-    pub x0: f64,
-    /// Sign regularisation of every friction law, rad/s at the motor.
-    pub omega_eps: f64,
-    pub compliance: Compliance,
-    /// Contact preload of the nut (Hertz law), N.
-    pub contact_preload_n: f64,
-}
-
-impl Physics {
-    pub fn from_rig(rig: &RigConfig) -> Physics {
-        let p = &rig.plant;
-        let k = p.screw.lead_m / std::f64::consts::TAU;
-        Physics {
-            kt: 1.5 * f64::from(p.motor.pole_pairs) * p.motor.flux_linkage_wb,
-            pole_pairs: f64::from(p.motor.pole_pairs),
-            flux_wb: p.motor.flux_linkage_wb,
-            r_ohm: p.motor.phase_resistance_ohm,
-            l_q_h: p.motor.inductance_q_h,
-            j_rot: p.motor.rotor_inertia_kg_m2 + p.coupling.inertia_kg_m2 + p.screw.inertia_kg_m2,
-            k,
-            m_moving: p.rod.nut_rod_mass_kg + p.rod.payload_mass_kg,
-            b_rot: p.motor.viscous_friction_n_m_s_rad
-                + p.screw.viscous_friction_n_m_s_rad
-                + p.rod.viscous_friction_n_s_m * k * k,
-            mu: (1.0 - p.screw.efficiency) / p.screw.efficiency,
-            drag_n_m: p.screw.preload_drag_torque_n_m,
-            rod_coulomb_n: p.rod.coulomb_friction_n,
-            rod_static_n: p.rod.static_friction_n,
-            rod_viscous_n_s_m: p.rod.viscous_friction_n_s_m,
-            axial_damping_n_s_m: p.deformation.axial_damping_n_s_m,
-            j_screw: p.screw.inertia_kg_m2,
-            b_screw: p.screw.viscous_friction_n_m_s_rad,
-            stribeck_m_s: p.rod.stribeck_velocity_m_s,
-            gravity: p.load.gravity_m_s2,
-            tilt_deg: p.load.initial_tilt_deg,
-            x0: p.stroke.initial_position_m,
-            omega_eps: 0.5,
-            compliance: Compliance::new(p),
-            contact_preload_n: p.deformation.contact.preload_n,
-        }
-    }
-
-    /// Rotor-referred inertia including the moving mass, kg·m².
-    pub fn j_eq(&self) -> f64 {
-        self.j_rot + self.m_moving * self.k * self.k
-    }
-
-    pub fn sgn(&self, omega: f64) -> f64 {
-        (omega / self.omega_eps).tanh()
-    }
-
-    /// Axial load from gravity and the external force, N.
-    pub fn load_n(&self, f_ext: f64, tilt_deg: f64) -> f64 {
-        self.m_moving * self.gravity * tilt_deg.to_radians().sin() + f_ext
-    }
-
-    /// Nominal friction torque at the motor.
-    pub fn friction(&self, omega: f64, f_ax: f64) -> f64 {
-        let v = self.k * omega;
-        let rod = self.rod_coulomb_n
-            + (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
-        self.b_rot * omega
-            + self.sgn(omega) * (self.drag_n_m + self.k * rod + self.mu * self.k * f_ax.abs())
-    }
-
-    /// The torsional path (coupling + screw twist to the nut) carries, on
-    /// top of the thread's `(L/2π) F` that `deflection` includes, the torque
-    /// that accelerates the screw and the nut's friction torque; its wind-up
-    /// puts the nut behind by `(L/2π) C_rot(x) (J_s α + T_f)`, m. `dir`: the
-    /// last direction of motion, holding the friction at rest (as the seal).
-    pub fn screw_wind_up_m(&self, omega: f64, alpha: f64, f_nut: f64, x: f64, dir: f64) -> f64 {
-        let moving = (omega / self.omega_eps).abs().tanh();
-        let s = moving * omega.signum() + (1.0 - moving) * dir;
-        let t_f = self.b_screw * omega + s * (self.drag_n_m + self.mu * self.k * f_nut.abs());
-        self.k * self.compliance.torsional_compliance_rad_per_n_m(x) * (self.j_screw * alpha + t_f)
-    }
-
-    /// Damping ratio of the rod's axial mode at local compliance `c` (m/N).
-    pub fn rod_damping_ratio(&self, c: f64) -> f64 {
-        0.5 * self.axial_damping_n_s_m * (c / self.m_moving).sqrt()
-    }
-
-    /// The rod seal's friction force at rod speed `v`, which the nut
-    /// carries on top of load and inertia (so it deflects the drive train).
-    /// At rest the seal holds the force the last motion (`dir`, ±1) left
-    /// in it; moving, it is the nominal law. Returns (force, weight of the
-    /// moving law in [0, 1]).
-    pub fn rod_friction_n(&self, v: f64, dir: f64) -> (f64, f64) {
-        let moving = (v / (self.k * self.omega_eps)).abs().tanh();
-        let s = moving * v.signum() + (1.0 - moving) * dir;
-        let stribeck =
-            (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
-        (
-            self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck,
-            moving,
-        )
-    }
-
-    /// Motor torque the nominal model needs for (ω, α) with the nut carrying
-    /// `f_nut` (load + the rod's own inertia + seal friction): rotor and
-    /// screw inertia, the thread, bearing viscous friction, the nut's drag
-    /// and its load-proportional (efficiency) friction.
-    pub fn required_torque_nut(&self, omega: f64, alpha: f64, f_nut: f64) -> f64 {
-        let b_bearings = self.b_rot - self.rod_viscous_n_s_m * self.k * self.k;
-        self.j_rot * alpha
-            + self.k * f_nut
-            + b_bearings * omega
-            + self.sgn(omega) * (self.drag_n_m + self.mu * self.k * f_nut.abs())
-    }
-
-    /// Motor torque the nominal model needs for (ω, α) under load `f_load`.
-    pub fn required_torque(&self, omega: f64, alpha: f64, f_load: f64) -> f64 {
-        let f_ax = f_load + self.m_moving * self.k * alpha;
-        self.j_rot * alpha + self.k * f_ax + self.friction(omega, f_ax)
-    }
-
-    /// Nominal static deflection (motor side minus terminal), m.
-    pub fn deflection(&self, f_ax: f64, x: f64) -> f64 {
-        self.compliance
-            .static_deflection(f_ax, x)
-            .terminal_total_m()
-    }
-
-    /// Local compliance `d deflection / dF`, m/N.
-    pub fn local_compliance(&self, f_ax: f64, x: f64) -> f64 {
-        (self.deflection(f_ax + 1.0, x) - self.deflection(f_ax - 1.0, x)) / 2.0
-    }
-}
 
 /// The nominal model a log is compared with.
 #[derive(Clone, Debug)]
@@ -191,49 +44,6 @@ pub enum Nominal {
     /// reference (healthy) runs: for rigs whose physical parameters are not
     /// known (the Cranfield stepper rig).
     Regression(Regression),
-}
-
-/// Nominal regression: `current ≈ Σ a_j f_j`, `tracking error ≈ Σ b_j g_j`.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Regression {
-    pub v_eps: f64,
-    pub torque_coef: Vec<f64>,
-    pub position_coef: Vec<f64>,
-}
-
-/// Regression features: a constant, the reference speed's sign, the
-/// reference speed now and 2, 4, 8 and 12 samples ago (the drive's lag),
-/// the reference acceleration, the load and the load × sign.
-pub const REG_FEATURES: [&str; 10] = [
-    "1",
-    "sgn(v)",
-    "v",
-    "v[-2]",
-    "v[-4]",
-    "v[-8]",
-    "v[-12]",
-    "a",
-    "F",
-    "F·sgn(v)",
-];
-pub const NREG: usize = REG_FEATURES.len();
-
-fn reg_features(seg: &Segment, i: usize, f: f64, v_eps: f64) -> [f64; NREG] {
-    let v = seg.v_ref[i];
-    let lag = |k: usize| seg.v_ref[i.saturating_sub(k)];
-    let s = (v / v_eps).tanh();
-    [
-        1.0,
-        s,
-        v,
-        lag(2),
-        lag(4),
-        lag(8),
-        lag(12),
-        seg.a_ref[i],
-        f / 1000.0,
-        f / 1000.0 * s,
-    ]
 }
 
 /// A contiguous stretch of samples with its kinematics and residuals.
@@ -295,78 +105,6 @@ pub struct Segment {
     pub dt: f64,
 }
 
-/// Plays (lost motions) tried by the backlash effect, m: 2 µm … 4.6 mm.
-pub fn backlash_grid_m() -> Vec<f64> {
-    (0..24).map(|k| 2e-6 * 1.4f64.powi(k)).collect()
-}
-
-/// `(play_b(x) − x)/b` of the play operator `y = clamp(y, x − b/2, x + b/2)`
-/// started centred.
-pub fn play_deviation(x: &[f64], b: f64) -> Vec<f64> {
-    let mut y = x.first().copied().unwrap_or(0.0);
-    x.iter()
-        .map(|&xi| {
-            y = y.clamp(xi - 0.5 * b, xi + 0.5 * b);
-            (y - xi) / b
-        })
-        .collect()
-}
-
-/// Lost motion with a known nut force: the rod rests on the flank the force
-/// pushes it against, `−½ flank` of the gap behind the screw. The flank
-/// turns when the force (load + inertia + the seal's sliding friction,
-/// given with the weight `moving` of the sliding law) leaves a hold band:
-/// at rest the seal's breakaway `f_hold` must be overcome to push the rod
-/// across the gap; sliding, only the sign counts. Without a load the
-/// force follows the motion and this is the play operator.
-pub fn flank_deviation(force: &[(f64, f64)], f_hold: f64) -> Vec<f64> {
-    let mut flank = force
-        .first()
-        .map_or(1.0, |f| if f.0 < 0.0 { -1.0 } else { 1.0 });
-    force
-        .iter()
-        .map(|&(f, moving)| {
-            let band = (1.0 - moving) * f_hold;
-            if f > band {
-                flank = 1.0;
-            } else if f < -band {
-                flank = -1.0;
-            }
-            -0.5 * flank
-        })
-        .collect()
-}
-
-/// Gain of the quadratic Savitzky–Golay smoother (half width m) on a
-/// sinusoid advancing `phi` rad per sample.
-pub fn sg_smooth_gain(m: usize, phi: f64) -> f64 {
-    let mf = m as f64;
-    let den = (2.0 * mf + 1.0) * (4.0 * mf * mf + 4.0 * mf - 3.0);
-    (0..=2 * m)
-        .map(|j| {
-            let k = j as f64 - mf;
-            (3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0) - 15.0 * k * k) / den * (k * phi).cos()
-        })
-        .sum()
-}
-
-/// Gain of the Savitzky–Golay second derivative relative to the true one on
-/// a sinusoid advancing `phi` rad per sample.
-pub fn sg_second_gain(m: usize, phi: f64) -> f64 {
-    if phi.abs() < 1e-6 {
-        return 1.0;
-    }
-    let mf = m as f64;
-    let s2 = mf * (mf + 1.0) / 3.0;
-    let sq: f64 = (0..=2 * m)
-        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
-        .sum();
-    let num: f64 = (0..=2 * m)
-        .map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq * ((j as f64 - mf) * phi).cos())
-        .sum();
-    -num / (phi * phi)
-}
-
 /// Below this motor speed the torque and position channels fade out (see
 /// `Segment::motion_weight`), rad/s: 0.8 mm/s at the rod, under the nominal
 /// Stribeck speed.
@@ -389,33 +127,6 @@ impl Segment {
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
-}
-
-/// Quadratic Savitzky–Golay value, first and second derivative at sample i
-/// (half width m, step h).
-fn sg(y: &[f64], i: usize, m: usize, h: f64) -> (f64, f64, f64) {
-    let mf = m as f64;
-    let s2 = mf * (mf + 1.0) / 3.0;
-    let sk2: f64 = (1..=m).map(|k| 2.0 * (k as f64).powi(2)).sum();
-    let sq: f64 = (0..=2 * m)
-        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
-        .sum();
-    let (mut a1, mut a2) = (0.0, 0.0);
-    let mean: f64 = y[i - m..=i + m].iter().sum::<f64>() / (2.0 * mf + 1.0);
-    for j in 0..=2 * m {
-        let kk = j as f64 - mf;
-        let v = y[i - m + j];
-        a1 += kk * v;
-        a2 += (kk * kk - s2) * v;
-    }
-    let c2 = a2 / sq;
-    (mean - c2 * s2, a1 / sk2 / h, 2.0 * c2 / (h * h))
-}
-
-/// Half width of the differentiation window for a sample step: ±10 ms, at
-/// least 2 samples.
-pub fn half_width(dt: f64) -> usize {
-    ((0.010 / dt).round() as usize).clamp(2, 50)
 }
 
 /// Builds the segments of `log` with the nominal residuals. The `m` samples
@@ -658,56 +369,4 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         out.push(seg);
     }
     Ok(out)
-}
-
-/// Fits the regression nominal on reference segments (built with a zero
-/// regression, which leaves the kinematics intact).
-pub fn fit_regression(log: &Log) -> Result<Regression> {
-    let zero = Regression {
-        v_eps: 1e-3,
-        torque_coef: vec![0.0; NREG],
-        position_coef: vec![0.0; NREG],
-    };
-    let segs = build_segments(log, &Nominal::Regression(zero.clone()), 0.0)?;
-    let vmax = segs
-        .iter()
-        .flat_map(|s| s.v_ref.iter())
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    let v_eps = (0.05 * vmax).max(1e-6);
-    let solve = |ch: usize, feats: &dyn Fn(&Segment, usize) -> Vec<f64>, p: usize| -> Vec<f64> {
-        let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
-        let mut atb = nalgebra::DVector::<f64>::zeros(p);
-        for s in &segs {
-            let Some(y) = &s.y[ch] else { continue };
-            for (i, yi) in y.iter().enumerate() {
-                let f = feats(s, i);
-                for a in 0..p {
-                    atb[a] += f[a] * yi;
-                    for b in 0..p {
-                        ata[(a, b)] += f[a] * f[b];
-                    }
-                }
-            }
-        }
-        ata.svd(true, true)
-            .solve(&atb, 1e-12)
-            .map(|v| v.iter().copied().collect())
-            .unwrap_or_else(|_| vec![0.0; p])
-    };
-    let fext = |s: &Segment, i: usize| s.f_load[i];
-    let tc = solve(
-        TORQUE,
-        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
-        NREG,
-    );
-    let pc = solve(
-        POSITION,
-        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
-        NREG,
-    );
-    Ok(Regression {
-        v_eps,
-        torque_coef: tc,
-        position_coef: pc,
-    })
 }

@@ -1,0 +1,60 @@
+//! Savitzky–Golay differentiation (quadratic, ±10 ms): the value, speed and
+//! acceleration the residual is built from, and the smoother's gains on a
+//! sinusoid (what the differentiation does to a periodic error).
+
+/// Gain of the quadratic Savitzky–Golay smoother (half width m) on a
+/// sinusoid advancing `phi` rad per sample.
+pub fn sg_smooth_gain(m: usize, phi: f64) -> f64 {
+    let mf = m as f64;
+    let den = (2.0 * mf + 1.0) * (4.0 * mf * mf + 4.0 * mf - 3.0);
+    (0..=2 * m)
+        .map(|j| {
+            let k = j as f64 - mf;
+            (3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0) - 15.0 * k * k) / den * (k * phi).cos()
+        })
+        .sum()
+}
+
+/// Gain of the Savitzky–Golay second derivative relative to the true one on
+/// a sinusoid advancing `phi` rad per sample.
+pub fn sg_second_gain(m: usize, phi: f64) -> f64 {
+    if phi.abs() < 1e-6 {
+        return 1.0;
+    }
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let num: f64 = (0..=2 * m)
+        .map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq * ((j as f64 - mf) * phi).cos())
+        .sum();
+    -num / (phi * phi)
+}
+
+/// Quadratic Savitzky–Golay value, first and second derivative at sample i
+/// (half width m, step h).
+pub(super) fn sg(y: &[f64], i: usize, m: usize, h: f64) -> (f64, f64, f64) {
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sk2: f64 = (1..=m).map(|k| 2.0 * (k as f64).powi(2)).sum();
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let (mut a1, mut a2) = (0.0, 0.0);
+    let mean: f64 = y[i - m..=i + m].iter().sum::<f64>() / (2.0 * mf + 1.0);
+    for j in 0..=2 * m {
+        let kk = j as f64 - mf;
+        let v = y[i - m + j];
+        a1 += kk * v;
+        a2 += (kk * kk - s2) * v;
+    }
+    let c2 = a2 / sq;
+    (mean - c2 * s2, a1 / sk2 / h, 2.0 * c2 / (h * h))
+}
+
+/// Half width of the differentiation window for a sample step: ±10 ms, at
+/// least 2 samples.
+pub fn half_width(dt: f64) -> usize {
+    ((0.010 / dt).round() as usize).clamp(2, 50)
+}
