@@ -55,7 +55,12 @@ impl Biquad {
 /// Response to a step of `amplitude` (A, rad/s or rad at the motor) at
 /// t = 0, sampled every PWM period for `duration_s`: the measured signal
 /// (q current, PLL speed, or motor angle).
+///
+/// The mechanics are those the step's direction meets
+/// ([`DesignPlant::for_step`]: a step that lifts the load drives its inertia
+/// through the screw's efficiency).
 pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64, duration_s: f64) -> Vec<f64> {
+    let p = &p.for_step(amplitude);
     let t = p.t_pwm();
     let n = (duration_s / t).round() as usize;
     let a = (-p.r_ohm * t / p.l_h).exp();
