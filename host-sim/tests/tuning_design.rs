@@ -43,3 +43,34 @@ fn speed_pi_leaves_the_asked_phase_margin_at_crossover_and_the_asked_bandwidth()
         assert!(m2.gain_margin_db.unwrap() > 6.0);
     }
 }
+
+/// A one-way step meets the load's inertia through the screw's efficiency
+/// law (the nut's friction `μ r |F_ax|`): lifting `J_rot + (1 + μ) m r²`,
+/// lowering `J_rot + (1 − μ) m r²`; the rod's anti-resonance stays and its
+/// resonance is the two-mass closed form `ω_a √(J'/J_rot)`.
+#[test]
+fn a_step_meets_the_load_inertia_through_the_screw_efficiency() {
+    let (j_rot, m, r, k, c, mu) = (1.06e-4, 35.0, 0.005 / TAU, 4.0e7, 2.0e3, 1.0 / 9.0);
+    let mr2 = m * r * r;
+    let j = j_rot + mr2;
+    let mut p = plant();
+    p.inertia_kg_m2 = j;
+    p.rod_mode = Some(host_sim::tuning::design::RodMode::new(k, c, m, j, j_rot));
+    p.load_inertia_kg_m2 = mr2;
+    p.screw_mu = mu;
+    p.load_sign = 1.1;
+    let wa = (k / m).sqrt();
+    for (dir, jt) in [(1.0, j_rot + (1.0 + mu) * mr2), (-1.0, j_rot + (1.0 - mu) * mr2)] {
+        let q = p.for_step(dir);
+        assert!((q.inertia_kg_m2 - jt).abs() < 1e-12, "{dir}: {} vs {jt}", q.inertia_kg_m2);
+        let md = q.rod_mode.unwrap();
+        assert!((TAU * md.antiresonance_hz - wa).abs() < 1e-9 * wa);
+        let wr = wa * (jt / j_rot).sqrt();
+        assert!((TAU * md.resonance_hz - wr).abs() < 1e-9 * wr, "{dir}: {} vs {}", TAU * md.resonance_hz, wr);
+        let za = c / (2.0 * (k * m).sqrt());
+        assert!((md.zeta_r - za * (jt / j_rot).sqrt()).abs() < 1e-12);
+    }
+    // Unloaded: no direction, the plant as it is.
+    p.load_sign = 0.0;
+    assert_eq!(p.for_step(1.0).inertia_kg_m2, j);
+}

@@ -44,6 +44,22 @@ pub struct DesignPlant {
     /// The speed PI's setpoint weight `b` (`control.speed_setpoint_weight`):
     /// the gains' structure, kept here so that every response below uses it.
     pub speed_setpoint_weight: f64,
+    /// The moving mass reflected to the motor, `m r²` (kg·m², part of
+    /// `inertia_kg_m2`), and the screw's `μ = (1 − η)/η`: the nut's friction
+    /// is `μ r |F_ax|`, so a motion that lifts the load (does work against
+    /// it) drives the load's inertia through `r (1 + μ)` and one that lowers
+    /// it through `r (1 − μ)`. A symmetric test (a chirp, the identification's
+    /// ± steps) sees `inertia_kg_m2`; a one-way step sees
+    /// `inertia_kg_m2 ± μ m r²` ([`DesignPlant::for_step`]). 0: none.
+    #[serde(default)]
+    pub load_inertia_kg_m2: f64,
+    #[serde(default)]
+    pub screw_mu: f64,
+    /// The static load torque (N·m; +: it opposes positive motion, as
+    /// gravity does on the bench), of which only the sign is used; 0 when
+    /// unloaded.
+    #[serde(default)]
+    pub load_sign: f64,
 }
 
 /// The load mass on the drive train's axial stiffness, seen at the motor.
@@ -65,6 +81,14 @@ impl RodMode {
         let za = c / (2.0 * (k_ax * m).sqrt());
         let ratio = (j_total / j_motor).sqrt();
         RodMode { antiresonance_hz: wa / TAU, resonance_hz: wa * ratio / TAU, zeta_a: za, zeta_r: za * ratio }
+    }
+    /// The same spring and load seen by a drive train whose total inertia
+    /// is `j_new` instead of `j_old` with the motor's share unchanged (the
+    /// load's share scaled): the anti-resonance stays, the resonance moves.
+    pub fn with_total_inertia(&self, j_old: f64, j_new: f64) -> Self {
+        let jm = j_old * (self.antiresonance_hz / self.resonance_hz).powi(2);
+        let ratio = (j_new / jm).sqrt();
+        RodMode { resonance_hz: self.antiresonance_hz * ratio, zeta_r: self.zeta_a * ratio, ..*self }
     }
     fn factor(&self, s: C) -> C {
         let (wa, wr) = (TAU * self.antiresonance_hz, TAU * self.resonance_hz);
@@ -88,6 +112,27 @@ impl DesignPlant {
             pll_ki: f64::from(p.encoder.pll_ki_per_s2),
             rod_mode: None,
             speed_setpoint_weight: f64::from(p.speed_setpoint_weight),
+            load_inertia_kg_m2: 0.0,
+            screw_mu: 0.0,
+            load_sign: 0.0,
+        }
+    }
+
+    /// The plant a step of sign `direction` meets: the load's reflected
+    /// inertia through the screw's efficiency law, `J ± μ m r²` (+ lifting),
+    /// the rod's mode moved with it.
+    pub fn for_step(&self, direction: f64) -> DesignPlant {
+        let sgn = |x: f64| if x > 0.0 { 1.0 } else if x < 0.0 { -1.0 } else { 0.0 };
+        let s = sgn(direction) * sgn(self.load_sign);
+        let extra = s * self.screw_mu * self.load_inertia_kg_m2;
+        if extra == 0.0 || !extra.is_finite() {
+            return self.clone();
+        }
+        let j = self.inertia_kg_m2 + extra;
+        DesignPlant {
+            inertia_kg_m2: j,
+            rod_mode: self.rod_mode.map(|m| m.with_total_inertia(self.inertia_kg_m2, j)),
+            ..self.clone()
         }
     }
     pub fn t_pwm(&self) -> f64 {

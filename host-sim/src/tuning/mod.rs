@@ -162,6 +162,18 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, rigid:
     if let Some(l) = ident.and_then(|i| i.inductance_h) {
         plant.l_h = l;
     }
+    // The screw's efficiency law under the static load (the feedforward's
+    // belief of η; the load's sign identified, else the rig's gravity).
+    let k = f64::from(base.metres_per_rad());
+    plant.load_inertia_kg_m2 = f64::from(base.drive_train.moving_mass_kg) * k * k;
+    plant.screw_mu = (1.0 - f64::from(base.drive_train.screw_efficiency)) / f64::from(base.drive_train.screw_efficiency);
+    plant.load_sign = ident.map_or_else(
+        || {
+            let ph = Physics::from_rig(rig);
+            ph.m_moving * ph.gravity * ph.tilt_deg.to_radians().sin()
+        },
+        |i| i.load_n_m,
+    );
     let mode = rod_mode(rig, X0_M);
     if !rigid {
         plant.rod_mode = Some(mode);

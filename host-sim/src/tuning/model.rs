@@ -55,11 +55,14 @@ impl Biquad {
 /// Response to a step of `amplitude` (A, rad/s or rad at the motor) at
 /// t = 0, sampled every PWM period for `duration_s`: the measured signal
 /// (q current, PLL speed, or motor angle).
+///
+/// The mechanics are those the step's direction meets
+/// ([`DesignPlant::for_step`]: a step that lifts the load drives its inertia
+/// through the screw's efficiency).
 pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64, duration_s: f64) -> Vec<f64> {
+    let p = &p.for_step(amplitude);
     let t = p.t_pwm();
     let n = (duration_s / t).round() as usize;
-    let a = (-p.r_ohm * t / p.l_h).exp();
-    let b = (1.0 - a) / p.r_ohm;
     let (sd, pd) = (p.speed_div.round() as usize, p.position_div.round() as usize);
     let ts = p.t_speed();
     // Two-mass split (rigid when no mode is given).
@@ -83,6 +86,9 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
     let mut out = Vec::with_capacity(n);
     let sub = 20;
     let h = t / sub as f64;
+    let ah = (-p.r_ohm * h / p.l_h).exp();
+    let p_psi = if kind == StepKind::Current { 0.0 } else { p.kt_n_m_a / 1.5 };
+    let mut ff_prev = 0.0f64;
     for k in 0..n {
         // Sample.
         th_est += w_est * t;
@@ -114,13 +120,18 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
             StepKind::Speed => w_est,
             StepKind::Position => th,
         });
-        // The period: last period's voltage on the winding; the mechanics
-        // from the current along the exact exponential.
-        let i0 = i;
-        let i_inf = u_prev / p.r_ohm;
-        for s in 1..=sub {
-            let tau = s as f64 * h;
-            let i_mid = i_inf + (i0 - i_inf) * (-p.r_ohm * (tau - 0.5 * h) / p.l_h).exp();
+        // The period: last period's voltage on the winding with the back-EMF
+        // `p ψ ω` the motion induces, less the core's feedforward of it (the
+        // PLL's speed at the sample that computed the voltage), as the
+        // design's `current_ol` (`Q`); the current along the exact
+        // exponential of each sub-step, the mechanics from it.
+        let mut i_s = i;
+        for _ in 1..=sub {
+            let i_inf = (u_prev + p_psi * (ff_prev - w)) / p.r_ohm;
+            let i_next = i_inf + (i_s - i_inf) * ah;
+            // Mean current over the sub-step.
+            let i_mid = i_inf + (i_s - i_inf) * (1.0 - ah) * p.l_h / (p.r_ohm * h);
+            i_s = i_next;
             let torque = p.kt_n_m_a * i_mid;
             if jl > 0.0 {
                 let f = kax * (th - thl) + cax * (w - wl);
@@ -133,7 +144,8 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
                 th += h * w;
             }
         }
-        i = a * i0 + b * u_prev;
+        i = i_s;
+        ff_prev = w_est;
         u_prev = u;
         let _ = (speed_tick, position_tick);
     }
