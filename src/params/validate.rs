@@ -76,18 +76,18 @@ struct Rule(u16);
 
 impl Rule {
     const fn new(offset: usize, leaf: u16, check: Check) -> Self {
-        assert!(offset % 4 == 0 && offset / 4 < 128, "a checked leaf's offset does not fit a rule");
+        assert!(offset & 3 == 0 && offset < 512, "a checked leaf's offset does not fit a rule");
         assert!(leaf < 128, "leaf index beyond a rule's 7 bits");
-        Self((offset / 4) as u16 | leaf << 7 | (check as u16) << 14)
+        Self((offset as u16).wrapping_shr(2) | leaf.wrapping_shl(7) | (check as u16).wrapping_shl(14))
     }
     const fn offset(self) -> usize {
-        (self.0 & 0x7f) as usize * 4
+        ((self.0 & 0x7f) as usize).wrapping_shl(2)
     }
     const fn leaf(self) -> u16 {
-        (self.0 >> 7) & 0x7f
+        self.0.wrapping_shr(7) & 0x7f
     }
     const fn check(self) -> Check {
-        match self.0 >> 14 {
+        match self.0.wrapping_shr(14) {
             0 => Check::Positive,
             1 => Check::NonNegative,
             _ => Check::NonZero,
