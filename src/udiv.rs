@@ -15,8 +15,10 @@
 //!
 //! In assembly so that nothing in it can turn back into a call to a
 //! division routine. `__udivmoddi4(a: u64, b: u64, rem: *mut u64) -> u64`
-//! (AAPCS: `a` in r0:r1, `b` in r2:r3, `rem` on the stack); division by
-//! zero gives `u64::MAX` (Rust checks the divisor before it divides).
+//! (AAPCS: `a` in r0:r1, `b` in r2:r3, `rem` on the stack). Division by
+//! zero is never asked (Rust checks the divisor before it divides); it
+//! would give ones in the quotient bits computed and the dividend as the
+//! remainder.
 
 core::arch::global_asm!(
     ".section .text.__udivmoddi4,\"ax\",%progbits",

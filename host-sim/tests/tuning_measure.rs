@@ -232,3 +232,32 @@ fn the_design_model_predicts_the_simulated_speed_step() {
     // friction's state at rest before the step: 5.6 % in the bench's order).
     assert!(sim - lift > -0.5 && sim - lift < 1.2, "nominal: simulated {sim:.2} %, model {lift:.2} %");
 }
+
+/// A live kp change with a setpoint weight b ≠ 1 is bumpless: the loop
+/// carries the mean of the P term's error (`b r − y`) into the integrator,
+/// so the `kp (1 − b) r` that rides with the feedforward does not step
+/// (it stepped by Δkp (1 − b) r = −4.7 A at 100 rad/s, kp × 1.2, b = ½).
+#[test]
+fn a_live_kp_change_with_a_setpoint_weight_does_not_step_the_current() {
+    for b in [1.0f32, 0.5, 0.3] {
+        let mut p = ControlParams::default();
+        p.torque_filter_hz = 0.0;
+        p.speed_setpoint_weight = b;
+        assert!(p.validate().is_ok());
+        let mut l = SpeedLoop::new(&p);
+        let (r, y) = (100.0f32, 99.5f32);
+        let mut out = 0.0;
+        for _ in 0..400 {
+            out = l.step(&p, r, 0.0, 0.0, y, (-60.0, 60.0)).current_q_reference_a;
+        }
+        let mut q = p;
+        q.speed_pi.kp *= 1.2;
+        l.retune(&p, &q, out);
+        let after = l.step(&q, r, 0.0, 0.0, y, (-60.0, 60.0)).current_q_reference_a;
+        // The integral keeps integrating the 0.5 rad/s error: one period's
+        // worth is the only change allowed.
+        let one_period = q.speed_pi.ki * (r - y) * q.speed_period_s();
+        println!("b {b}: {out:.4} A -> {after:.4} A (one period of integral {one_period:.4} A)");
+        assert!((after - out).abs() <= one_period.abs() * 1.5 + 1e-3, "b {b}: {out} -> {after}");
+    }
+}

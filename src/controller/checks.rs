@@ -267,13 +267,13 @@ impl Controller {
                 self.raise(FaultSet::SOFT_LIMIT);
             }
         }
-        // A current test (step or chirp) makes voltage without motion on
-        // purpose: `L di/dt` of a kHz sweep, sampled here at the position
-        // rate, aliases into a turning `e` and reads as a slipping rotor.
-        // The watch sits out such a test (bounded by the test's duration);
-        // the position following error still guards a chirp, and the
-        // watch starts a fresh window after it.
-        if self.test.drives_current() {
+        // A current chirp makes voltage without motion on purpose: `L di/dt`
+        // of a kHz sweep, sampled here at the position rate, aliases into a
+        // turning `e` and reads as a slipping rotor. The watch sits out the
+        // chirp (bounded by its duration, which the test's bounds limit)
+        // and starts a fresh window after it. A current step keeps it: with
+        // both outer loops suspended it is the only encoder guard left.
+        if self.test.sweeps_current() {
             self.emf_watch.reset();
         } else if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
             && self.emf_watch.update(&self.params, self.voltage_dq, self.current_dq, self.derived.position_period_s)

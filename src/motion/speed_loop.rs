@@ -13,8 +13,9 @@ const ERROR_MEAN_SHARE: f32 = 0.1;
 pub struct SpeedLoop {
     pi: Pi,
     torque_filter: Biquad,
-    /// The speed error, low-passed over ≈ 2 ms (for a bumpless gain
-    /// change: its noise passes the P term once, only its mean would stay).
+    /// The P term's error (`b r − y`), low-passed over ≈ 2 ms (for a
+    /// bumpless gain change: its noise passes the P term once, only its
+    /// mean would stay).
     error_mean_rad_s: f32,
 }
 
@@ -81,7 +82,12 @@ impl SpeedLoop {
             ff_a -= p.speed_pi.kp * (1.0 - b) * speed_reference_rad_s;
         }
         let error = speed_reference_rad_s - speed_measured_rad_s;
-        self.error_mean_rad_s += ERROR_MEAN_SHARE * (error - self.error_mean_rad_s);
+        // What the P term multiplies: `b r − y`. A live kp change must carry
+        // the weighted error's mean into the integrator, or the `kp (1 − b) r`
+        // riding with the feedforward steps by `Δkp (1 − b) r` (b itself
+        // changes only with the bridge off).
+        let p_error = if b != 1.0 { error - (1.0 - b) * speed_reference_rad_s } else { error };
+        self.error_mean_rad_s += ERROR_MEAN_SHARE * (p_error - self.error_mean_rad_s);
         let out = self.pi.update(
             &p.speed_pi,
             error,

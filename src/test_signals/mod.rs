@@ -136,11 +136,13 @@ impl TestRun {
         self.phase == TestPhase::Running && matches!(self.signal, TestSignal::CurrentStep { .. } | TestSignal::SpeedStep { .. })
     }
 
-    /// A current step or current chirp is running: the current reference
-    /// is the test's, not the loops'.
+    /// A current chirp is running: its kHz `L di/dt` makes voltage without
+    /// motion (a current step does not, past its edge, and keeps the
+    /// back-EMF watch: it is the only encoder guard left while both outer
+    /// loops are suspended).
     #[inline(always)]
-    pub fn drives_current(&self) -> bool {
-        self.phase == TestPhase::Running && self.target() == ChirpTarget::Current
+    pub fn sweeps_current(&self) -> bool {
+        self.phase == TestPhase::Running && matches!(self.signal, TestSignal::Chirp { target: ChirpTarget::Current, .. })
     }
 
     /// Which loop's tick the test starts on.
