@@ -376,3 +376,32 @@ fn crc32(bytes: &[u8]) -> u32 {
     }
     !c
 }
+
+/// A set beyond the power stage's rating is refused naming the leaf and
+/// why (the board checks its ratings in `apply_params`), and nothing of it
+/// is applied: never clamped behind the user.
+#[test]
+fn a_set_beyond_the_hardware_rating_is_refused_naming_the_leaf() {
+    let mut srv = server();
+    let (mut d, mut s) = (MockDrive::running(), MemStore::default());
+    // A power stage rated below the set's limit; the ask is a valid set
+    // (below the trip) that this stage cannot carry.
+    d.hardware_current_max_a = Some(d.params.limits.current_max_a * 0.8);
+    let i = idx("control.limits.current_max_a");
+    let before = (d.params, d.applied);
+    let asked = d.params.limits.current_max_a * 0.9;
+    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { index: i, value: Value::F32(asked) });
+    match r {
+        Some(Reply::Error(Error::InvalidParam { index, reason })) => {
+            assert_eq!(index, i);
+            assert_eq!(reason, Reason::BeyondHardwareRating);
+            assert!(reason.text().contains("rating"));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!((d.params, d.applied), before);
+    // At or below the rating it applies.
+    let below = d.params.limits.current_max_a * 0.7;
+    let r = ask(&mut srv, &mut d, &mut s, Request::ParamSet { index: i, value: Value::F32(below) });
+    assert_eq!(r, Some(Reply::Param { index: i, value: Value::F32(below) }));
+}

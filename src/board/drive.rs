@@ -102,6 +102,13 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
     }
 
     fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
+        // At power-up a saved set is lowered to the board's ratings (and the
+        // log says so); a set sent or loaded while running is refused
+        // instead, naming the leaf: nothing is clamped behind the user.
+        let (_, lowered) = crate::board::b_g431b_esc1::apply_board_limits(*params.get());
+        if let Some(leaf) = lowered.first_leaf() {
+            return Err(ApplyError::BeyondHardware { leaf });
+        }
         match self.board.get_mut().apply_params(params) {
             Ok(r) => {
                 if r.is_ok() {

@@ -27,6 +27,9 @@ pub enum ApplyError {
     /// The controller did not answer (on the board: the PWM interrupt did
     /// not take the set in time); nothing was applied.
     NoAnswer,
+    /// This leaf is beyond what the drive's hardware is rated for (the
+    /// board's current, bus or overcurrent-trip rating); nothing applied.
+    BeyondHardware { leaf: u16 },
 }
 
 impl Controller {

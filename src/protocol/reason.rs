@@ -49,6 +49,7 @@ reasons! {
     MustBeAtLeastOne = "must be >= 1",
     MustBeAtMostOne = "must be <= 1",
     MustBeAtMostTwo = "must be <= 2",
+    BeyondHardwareRating = "beyond the drive hardware's rating (the board's current, bus voltage or overcurrent trip)",
     MustBeBelowOne = "must be < 1",
     MustBeFiniteAboveOne = "must be finite and > 1",
     MustBeOneOrMinusOne = "must be 1 or -1",

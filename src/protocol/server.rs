@@ -195,6 +195,7 @@ impl Server {
         drive.apply_params(&validated).map_err(|e| match e {
             ApplyError::NeedsBridgeOff { .. } => Error::NeedsBridgeOff { index },
             ApplyError::NoAnswer => Error::Busy,
+            ApplyError::BeyondHardware { leaf } => Error::InvalidParam { index: leaf, reason: Reason::BeyondHardwareRating },
         })?;
         let value = leaves::get(&staged, i).ok_or(Error::UnknownParam { index })?;
         Ok(Reply::Param { index, value })
@@ -260,6 +261,7 @@ impl Server {
         drive.apply_params(&set).map_err(|e| match e {
             ApplyError::NeedsBridgeOff { leaf } => Error::NeedsBridgeOff { index: leaf },
             ApplyError::NoAnswer => Error::Busy,
+            ApplyError::BeyondHardware { leaf } => Error::InvalidParam { index: leaf, reason: Reason::BeyondHardwareRating },
         })
     }
 

@@ -150,6 +150,21 @@ pub struct BoardLimitsApplied {
     pub overcurrent_trip_a: Option<f32>,
 }
 
+impl BoardLimitsApplied {
+    /// The first leaf that was lowered, if any (for a refusal naming it).
+    pub const fn first_leaf(&self) -> Option<u16> {
+        if self.bus_overvoltage_v.is_some() {
+            Some(servo_core::leaf!(faults.bus_overvoltage_v))
+        } else if self.current_max_a.is_some() {
+            Some(servo_core::leaf!(limits.current_max_a))
+        } else if self.overcurrent_trip_a.is_some() {
+            Some(servo_core::leaf!(faults.overcurrent_trip_a))
+        } else {
+            None
+        }
+    }
+}
+
 /// Lowers (never raises) the limits of `params` to what this power stage
 /// survives, and says what it lowered. `const`, so the firmware's set is
 /// lowered and then validated at compile time: a set made for a higher bus
