@@ -133,14 +133,7 @@ fn cli_converts_cranfield_to_the_schema() {
     let back = host_sim::diagnose::log::Log::read_csv(&out.path().join("log.csv")).unwrap();
     assert_eq!(back.len(), 46980);
     assert_eq!(back.errors().count(), 0);
-    for c in [
-        "time_s",
-        "run",
-        "position_reference_m",
-        "terminal_position_m",
-        "current_q_a",
-        "load_force_n",
-    ] {
+    for c in host_sim::diagnose::cranfield::COLUMNS {
         assert!(back.has(c), "{c}");
     }
 }

@@ -3,6 +3,9 @@
 //! every one of the leaves, a value written through one is read back
 //! through the other, and the path the server resolves is the tree's.
 
+mod protocol_support;
+
+use protocol_support::crc32;
 use servo_core::params::leaves::{self, LEAF_COUNT};
 use servo_core::params::record::{self, RecordError, RECORD_MAX};
 use servo_core::protocol::params::{self as paths, tree};
@@ -95,17 +98,6 @@ fn a_record_word_that_is_not_a_value_of_its_leaf_is_refused() {
     assert_eq!(record::decode(&rec), Err(RecordError::Decode));
 }
 
-/// CRC-32 (ISO-HDLC), bit by bit: the record's check, written out.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-    }
-    !c
-}
 
 /// The single-leaf checks are packed rows (offset, leaf, check in 16
 /// bits): a NaN put into any `f32` leaf through the leaf table is refused

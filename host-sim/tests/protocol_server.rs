@@ -365,17 +365,6 @@ fn info_carries_the_schema_hash() {
     assert_eq!(i.pwm_frequency_hz, 20_000.0);
 }
 
-/// CRC-32 (ISO-HDLC), bitwise: the record's, written out independently.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-    }
-    !c
-}
 
 /// A set beyond the power stage's rating is refused naming the leaf and
 /// why (the board checks its ratings in `apply_params`), and nothing of it

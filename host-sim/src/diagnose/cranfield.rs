@@ -13,6 +13,10 @@ use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// The diagnose-log columns a Cranfield run is converted into.
+pub const COLUMNS: [&str; 6] =
+    ["time_s", "run", "position_reference_m", "terminal_position_m", "current_q_a", "load_force_n"];
+
 pub const KGF_N: f64 = 9.80665;
 
 /// A converted file, with the (load kgf, run) of every run index.
@@ -39,14 +43,7 @@ pub fn convert(path: &Path) -> Result<Converted> {
         idx("time")?,
     );
     let mut cols: BTreeMap<String, Vec<f64>> = BTreeMap::new();
-    for k in [
-        "time_s",
-        "run",
-        "position_reference_m",
-        "terminal_position_m",
-        "current_q_a",
-        "load_force_n",
-    ] {
+    for k in COLUMNS {
         cols.insert(k.into(), Vec::new());
     }
     let mut runs: Vec<(f64, u32)> = Vec::new();

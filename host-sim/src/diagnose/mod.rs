@@ -167,14 +167,7 @@ pub fn diagnose(
     nominal: Nominal,
     tilt_default_deg: f64,
 ) -> Result<Diagnosis> {
-    diagnose_with(
-        log,
-        heldout,
-        None,
-        nominal,
-        tilt_default_deg,
-        &Options::default(),
-    )
+    diagnose_against(log, heldout, None, nominal, tilt_default_deg)
 }
 
 /// `diagnose`, comparing region by region with a healthy `reference` log.

@@ -168,3 +168,16 @@ pub fn ask(srv: &mut Server, drive: &mut MockDrive, store: &mut MemStore, reques
 pub fn idx(s: &str) -> u16 {
     servo_core::protocol::params::index_of(s).unwrap() as u16
 }
+
+/// CRC-32 (ISO-HDLC), bit by bit: the record's and the frames' check,
+/// written out independently of the `crc` crate the core uses.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    !c
+}
