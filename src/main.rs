@@ -27,14 +27,11 @@
 mod board;
 mod hal_log;
 mod masking;
-mod mem;
-mod udiv;
 
 use board::active as hw;
 use board::drive::{BoardDrive, ParamsCache};
 use board::link::{self, Reply, Request};
 use board::{Calibration, ServoBoard, ISR_STATS};
-use cortex_m_rt::{exception, ExceptionFrame};
 use defmt::{error, info, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
@@ -107,8 +104,10 @@ async fn run() -> Option<Watchdog> {
     let mut cp = unsafe { cortex_m::Peripherals::steal() };
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
+    hw::exceptions::enable_fault_exceptions(&mut cp.SCB);
+    hw::enable_flash_acceleration();
     if !hw::brake::boot_pin_ignored() {
-        warn!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode; set nSWBOOT0 = 0, nBOOT0 = 1");
+        error!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode: the bridge stays off; set nSWBOOT0 = 0, nBOOT0 = 1 (docs/firmware.md, Flashing)");
     }
 
     let mut board = match board::bring_up(p) {
@@ -159,8 +158,8 @@ async fn run() -> Option<Watchdog> {
         hw::DEAD_TIME_NS,
         status.hw_overcurrent_armed
     );
-    if !status.hw_overcurrent_armed && hw::HW_OVERCURRENT_BREAK {
-        error!("a comparator was high with the bridge off: hardware overcurrent break NOT armed");
+    if !status.hw_overcurrent_armed {
+        error!("comparator self-test failed (a comparator high with the bridge off): no hardware overcurrent break, the bridge stays off");
     }
 
     // Current offsets with the bridge off.
@@ -595,20 +594,5 @@ async fn park(mut dog: Option<Watchdog>) -> ! {
         if ticks.is_multiple_of(500) {
             error!("parked: see the first error above");
         }
-    }
-}
-
-/// Any fault, a panic included (panic-probe ends in `udf`, which is a
-/// HardFault): switch the bridge off (MOE) and stop the brake's release
-/// signal (pin low), then stay here. Two register stores, no stack use
-/// beyond the frame: works with a corrupted stack pointer region too. With a
-/// debugger attached, probe-rs halts here; the DBGMCU freeze already
-/// disabled the TIM1 outputs, and the brake closed when the toggling stopped.
-#[exception]
-unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
-    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-    hw::brake::force_closed();
-    loop {
-        cortex_m::asm::nop();
     }
 }

@@ -124,7 +124,7 @@ impl ClosedLoop {
         };
         // The comparator acts within microseconds: check it at least twice
         // a period, however long the plant's own RK4 steps may be.
-        let n = self.plant.params().integration.substeps_per_pwm_period.max(2);
+        let n = self.plant.params().substeps().max(2);
         let h = self.pwm_period_s / f64::from(n);
         self.period_peak_current_a = 0.0;
         for _ in 0..n {
@@ -248,7 +248,7 @@ pub fn holding_vertical(
     capture: Option<&'static servo_core::capture::CaptureStore>,
 ) -> anyhow::Result<ClosedLoop> {
     let rig = crate::config::RigConfig::nominal()?;
-    let mut plant = Plant::new(rig.plant.clone(), seed);
+    let mut plant = Plant::try_new(rig.plant.clone(), seed).map_err(|e| anyhow::anyhow!("params/rig.toml: {e}"))?;
     plant.set_initial_state((x0_m - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), std::f64::consts::FRAC_PI_2);
     let mut controller = Controller::try_new(commissioned_control(rig.control, &plant)).map_err(|e| anyhow::anyhow!("{e}"))?;
     if let Some(store) = capture {

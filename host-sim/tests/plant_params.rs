@@ -109,27 +109,64 @@ fn other_tables_in_the_rig_file_are_left_alone() {
 }
 
 #[test]
-fn integration_step_must_resolve_the_fastest_dynamics() {
+fn the_plant_chooses_its_substeps_and_the_file_sets_a_minimum() {
     let (field, reason) = refusal(&rig_with("substeps_per_pwm_period = 1", "substeps_per_pwm_period = 0"));
     assert_eq!(field, "plant.integration.substeps_per_pwm_period");
-    assert!(reason.contains(">= 1"), "{reason}");
+    assert!(reason.contains("1..="), "{reason}");
 
-    // A friction regularisation ten times sharper makes the screw's
-    // tanh region too steep for a 50 µs RK4 step.
+    // A friction regularisation ten times sharper makes the screw's tanh
+    // region ten times steeper: the rig loads, and the plant takes the
+    // steps the rule asks for (rate·h <= 2.5 for a relaxation) without a
+    // hand edit of the file.
+    let sharp = rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5");
+    let p = PlantParams::from_toml_str(&sharp).unwrap_or_else(|e| panic!("must load: {e}"));
+    assert_eq!(p.integration.substeps_per_pwm_period, 1);
+    let rates = p.fastest_rates_per_s();
+    let screw = rates.iter().find(|(n, _)| *n == "screw friction regularisation").unwrap().1;
+    let expected = (screw / (2.5 * 20_000.0)).ceil() as u32;
+    assert!(expected > 1);
+    assert_eq!(p.substeps(), expected);
+    assert!(screw * p.max_step_s() <= 2.5);
+    // One substep fewer would break the rule: the choice is the fewest.
+    assert!(screw / (20_000.0 * f64::from(expected - 1)) > 2.5);
+    Plant::try_new(p.clone(), 1).unwrap_or_else(|e| panic!("must construct: {e}"));
+
+    // The file's value is a minimum: asking for more is kept.
+    let more = sharp.replacen("substeps_per_pwm_period = 1\n", "substeps_per_pwm_period = 32\n", 1);
+    assert_eq!(PlantParams::from_toml_str(&more).unwrap().substeps(), 32);
+
+    // The shipped rig at 2 % payload: the rod's regularisation needs two
+    // steps per period (once a construction panic).
+    let mut light = PlantParams::default();
+    light.rod.payload_mass_kg *= 0.02;
+    assert_eq!(light.validate(), Ok(()));
+    assert_eq!(light.substeps(), 2);
+    Plant::try_new(light, 1).unwrap_or_else(|e| panic!("2 % payload must construct: {e}"));
+
+    // A rate no affordable step resolves is refused, naming the field
+    // that makes it and the bound.
     let (field, reason) =
-        refusal(&rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5"));
-    assert_eq!(field, "plant.integration.substeps_per_pwm_period");
-    assert!(reason.contains("screw friction"), "{reason}");
+        refusal(&rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-8"));
+    assert_eq!(field, "plant.friction.regularisation_velocity_m_s");
+    assert!(reason.contains("at most 64") && reason.contains("must be <="), "{reason}");
+}
 
-    // ... which more substeps fix.
-    let text = rig_with("regularisation_velocity_m_s = 1.0e-4", "regularisation_velocity_m_s = 1.0e-5").replacen(
-        "substeps_per_pwm_period = 1\n",
-        "substeps_per_pwm_period = 32\n",
-        1,
-    );
-    if let Err(e) = PlantParams::from_toml_str(&text) {
-        panic!("32 substeps should do: {e}");
-    }
+#[test]
+fn physical_bounds_are_refused_naming_the_field_and_the_bound() {
+    let (field, reason) = refusal(&rig_with("efficiency = 0.9", "efficiency = 0.45"));
+    assert_eq!(field, "plant.screw.efficiency");
+    assert!(reason.contains("self-locking") && reason.contains("> 0.5"), "{reason}");
+
+    let (field, reason) = refusal(&rig_with("lead_error_m_per_m = 0.0", "lead_error_m_per_m = 0.01"));
+    assert_eq!(field, "plant.screw.lead_error_m_per_m");
+    assert!(reason.contains("1e-3"), "{reason}");
+
+    let (field, _) = refusal(&rig_with("holding_torque_n_m = 2.5", "holding_torque_n_m = -2.5"));
+    assert_eq!(field, "plant.brake.holding_torque_n_m");
+    let (field, _) = refusal(&rig_with("engage_time_s = 0.025", "engage_time_s = -0.025"));
+    assert_eq!(field, "plant.brake.engage_time_s");
+    let (field, _) = refusal(&rig_with("encoder_zero_rad = 0.0", "encoder_zero_rad = inf"));
+    assert_eq!(field, "plant.sensors.encoder_zero_rad");
 }
 
 #[test]

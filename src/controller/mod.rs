@@ -429,6 +429,15 @@ impl Controller {
         self.raise(FaultSet::WATCHDOG_RESET);
     }
 
+    /// Whether the next [`Controller::step`] runs the current loop only (no
+    /// speed or position tick): the board serves bulk requests (parameter
+    /// sets, capture and test-signal requests) in such a period, so that
+    /// their copies never add to the longest one.
+    #[inline(always)]
+    pub fn next_period_is_current_only(&self) -> bool {
+        self.speed_countdown != 1
+    }
+
     /// The host calls this once the board is up. Nothing moves unless the
     /// configuration asks for it (`startup.run_at_power_up`).
     pub fn power_up(&mut self) -> Result<CommandOutcome, CommandError> {

@@ -263,6 +263,26 @@ pub fn leaf(index: usize) -> Option<Leaf> {
     Some(Leaf { offset: *OFFSETS.get(index)?, kind: *KINDS.get(index)? })
 }
 
+/// Whether leaf `index` holds the same value in `a` and `b` (as `get`'s
+/// values compare: floats by value), read in place: no `Value` built, for
+/// the PWM interrupt's parameter apply. An unknown index counts as same.
+#[inline(always)]
+pub fn same(a: &ControlParams, b: &ControlParams, index: usize) -> bool {
+    let Some(l) = leaf(index) else { return true };
+    let pa = (a as *const ControlParams).cast::<u8>().wrapping_add(usize::from(l.offset));
+    let pb = (b as *const ControlParams).cast::<u8>().wrapping_add(usize::from(l.offset));
+    // SAFETY: as in `get`: both point to an initialised, aligned value of
+    // the leaf's own type inside `*a` and `*b`.
+    unsafe {
+        match l.kind {
+            ValueKind::F32 => *pa.cast::<f32>() == *pb.cast::<f32>(),
+            ValueKind::U32 | ValueKind::I32 => *pa.cast::<u32>() == *pb.cast::<u32>(),
+            ValueKind::Bool => *pa.cast::<bool>() == *pb.cast::<bool>(),
+            ValueKind::Variant => *pa.cast::<HomingMethod>() == *pb.cast::<HomingMethod>(),
+        }
+    }
+}
+
 /// The value of leaf `index` of `p`.
 pub fn get(p: &ControlParams, index: usize) -> Option<Value> {
     let l = leaf(index)?;

@@ -119,7 +119,9 @@ pub struct Plant {
 
 impl Plant {
     /// A plant at rest in static equilibrium under the initial load, holding
-    /// current flowing (see `set_initial_state`).
+    /// current flowing (see `set_initial_state`). For parameters already
+    /// validated (a loaded rig file, `PlantParams::default()`); the
+    /// commands build their plants with `try_new`.
     ///
     /// # Panics
     /// If `params` fail `validate()`; use `try_new` for a `Result`.
@@ -155,6 +157,12 @@ impl Plant {
             effects: UnmodelledEffects::default(),
             params,
         };
+        plant.sensors.bench.encoder_zero_rad = plant.params.sensors.encoder_zero_rad;
+        if plant.params.screw.lead_error_m_per_m != 0.0 {
+            // The rig's own lead error acts through the effects' thread law.
+            plant.effects = UnmodelledEffects { lead_error_m_per_m: plant.params.screw.lead_error_m_per_m, ..Default::default() };
+            plant.model.fx = plant.effects.dynamics(&plant.params);
+        }
         plant.set_initial_state(0.0, tilt);
         Ok(plant)
     }
@@ -185,6 +193,9 @@ impl Plant {
     pub fn with_effects(params: PlantParams, effects: UnmodelledEffects, seed: u64) -> Result<Plant, ParamError> {
         let mut p = params;
         effects.apply_to_params(&mut p);
+        let mut effects = effects;
+        // The rig file's lead error and the effect's add up.
+        effects.lead_error_m_per_m += p.screw.lead_error_m_per_m;
         let mut plant = Self::try_new(p, seed)?;
         plant.model.fx = effects.dynamics(&plant.params);
         plant.effects = effects;

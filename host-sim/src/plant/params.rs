@@ -50,6 +50,11 @@ pub struct CouplingParams {
 pub struct ScrewParams {
     /// Lead `L_s`: nut travel per screw revolution.
     pub lead_m: f64,
+    /// Cumulative lead error ε: the nut travels `(1 + ε) L_s` per screw
+    /// revolution while the drive believes `L_s` (a screw's accuracy grade:
+    /// C7 allows ±52 µm over 300 mm, |ε| ≤ 1.7e-4). Absent: 0.
+    #[serde(default)]
+    pub lead_error_m_per_m: f64,
     pub inertia_kg_m2: f64,
     /// Support-bearing drag `B_s`.
     pub viscous_friction_n_m_s_rad: f64,
@@ -181,6 +186,11 @@ pub struct SensorParams {
     pub bus_voltage_full_scale_v: f64,
     pub bus_voltage_noise_v: f64,
     pub encoder_counts_per_rev: u32,
+    /// Mechanical angle at which the encoder's count zero sits, rad: the
+    /// encoder disc is mounted with no known relation to the magnets.
+    /// Absent: 0 (count zero at θ_e = 0).
+    #[serde(default)]
+    pub encoder_zero_rad: f64,
     pub linear_scale_enabled: bool,
     pub linear_scale_resolution_m: f64,
     pub load_cell_enabled: bool,
@@ -192,7 +202,9 @@ pub struct SensorParams {
 #[serde(deny_unknown_fields)]
 pub struct IntegrationParams {
     pub pwm_frequency_hz: f64,
-    /// RK4 steps per PWM period; the step is `1/(f_pwm · N)` or shorter.
+    /// The fewest RK4 steps per PWM period. The plant takes more when its
+    /// own step rule asks for them (`PlantParams::substeps`): a rig never
+    /// needs this set by hand; a larger value only buys accuracy.
     pub substeps_per_pwm_period: u32,
 }
 
@@ -235,6 +247,7 @@ impl Default for PlantParams {
             },
             screw: ScrewParams {
                 lead_m: 0.005,
+                lead_error_m_per_m: 0.0,
                 inertia_kg_m2: 0.74e-4,
                 viscous_friction_n_m_s_rad: 0.5e-4,
                 efficiency: 0.9,
@@ -288,6 +301,7 @@ impl Default for PlantParams {
                 bus_voltage_full_scale_v: 72.0,
                 bus_voltage_noise_v: 0.05,
                 encoder_counts_per_rev: 10_000,
+                encoder_zero_rad: 0.0,
                 linear_scale_enabled: true,
                 linear_scale_resolution_m: 1.0e-6,
                 load_cell_enabled: true,
@@ -315,8 +329,14 @@ impl PlantParams {
         self.screw.lead_m / (2.0 * std::f64::consts::PI)
     }
 
-    /// Largest RK4 step: `1 / (f_pwm · N)`.
+    /// RK4 steps per PWM period the plant takes: the rig file's minimum, or
+    /// more if the step rule (`substeps_needed`) asks for them.
+    pub fn substeps(&self) -> u32 {
+        self.integration.substeps_per_pwm_period.max(self.substeps_needed())
+    }
+
+    /// Largest RK4 step: `1 / (f_pwm · substeps())`.
     pub fn max_step_s(&self) -> f64 {
-        1.0 / (self.integration.pwm_frequency_hz * f64::from(self.integration.substeps_per_pwm_period))
+        1.0 / (self.integration.pwm_frequency_hz * f64::from(self.substeps()))
     }
 }

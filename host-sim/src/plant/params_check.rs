@@ -106,7 +106,24 @@ impl PlantParams {
         if s.efficiency <= 0.5 {
             // μ = (1−η)/η ≥ 1 would make the screw self-locking, which a ball
             // screw is not; the friction model assumes back-drivability.
-            return Err(ParamError::new("plant.screw.efficiency", "must be > 0.5 (a ball screw back-drives)"));
+            return Err(ParamError::new(
+                "plant.screw.efficiency",
+                format!(
+                    "{} makes the screw self-locking (back-drive efficiency 2 − 1/η = {:.3} <= 0); must be > 0.5",
+                    s.efficiency,
+                    2.0 - 1.0 / s.efficiency
+                ),
+            ));
+        }
+        finite("plant.screw.lead_error_m_per_m", s.lead_error_m_per_m)?;
+        if s.lead_error_m_per_m.abs() > LEAD_ERROR_MAX {
+            return Err(ParamError::new(
+                "plant.screw.lead_error_m_per_m",
+                format!(
+                    "{:e} is beyond ±{LEAD_ERROR_MAX:e} (±300 µm over 300 mm, the loosest transport grade C10 is ±210 µm)",
+                    s.lead_error_m_per_m
+                ),
+            ));
         }
         non_negative("plant.screw.preload_drag_torque_n_m", s.preload_drag_torque_n_m)?;
         non_negative("plant.screw.nut_distance_at_zero_m", s.nut_distance_at_zero_m)?;
@@ -180,15 +197,45 @@ impl PlantParams {
             // The core unwraps a 16-bit counter: a revolution must fit in half of it.
             return Err(ParamError::new("plant.sensors.encoder_counts_per_rev", "must be in 1..=32768"));
         }
+        finite("plant.sensors.encoder_zero_rad", se.encoder_zero_rad)?;
         positive("plant.sensors.linear_scale_resolution_m", se.linear_scale_resolution_m)?;
         non_negative("plant.sensors.load_cell_noise_n", se.load_cell_noise_n)?;
 
         let it = &self.integration;
         positive("plant.integration.pwm_frequency_hz", it.pwm_frequency_hz)?;
-        if it.substeps_per_pwm_period < 1 {
-            return Err(ParamError::new("plant.integration.substeps_per_pwm_period", "must be >= 1"));
+        if it.substeps_per_pwm_period < 1 || it.substeps_per_pwm_period > MAX_MINIMUM_SUBSTEPS {
+            return Err(ParamError::new(
+                "plant.integration.substeps_per_pwm_period",
+                format!("must be in 1..={MAX_MINIMUM_SUBSTEPS} (the plant adds substeps itself where its dynamics need them)"),
+            ));
         }
+
+        let b = &self.brake;
+        non_negative("plant.brake.holding_torque_n_m", b.holding_torque_n_m)?;
+        non_negative("plant.brake.release_time_s", b.release_time_s)?;
+        non_negative("plant.brake.engage_time_s", b.engage_time_s)?;
+        if b.fitted {
+            positive("plant.brake.holding_torque_n_m", b.holding_torque_n_m)?;
+            positive("plant.brake.stiffness_n_m_rad", b.stiffness_n_m_rad)?;
+        } else {
+            non_negative("plant.brake.stiffness_n_m_rad", b.stiffness_n_m_rad)?;
+        }
+        non_negative("plant.brake.damping_n_m_s_rad", b.damping_n_m_s_rad)?;
         self.check_step_resolves_dynamics()
+    }
+
+    /// RK4 steps per PWM period the step rule asks for: the fewest that put
+    /// every rate of `fastest_rates_per_s` within its `step_limit`.
+    pub fn substeps_needed(&self) -> u32 {
+        let f_pwm = self.integration.pwm_frequency_hz;
+        let mut n = 1.0f64;
+        for (name, rate) in self.fastest_rates_per_s() {
+            // A non-finite rate is refused by `validate`; here it asks nothing.
+            if rate.is_finite() {
+                n = n.max((rate / (step_limit(name) * f_pwm)).ceil());
+            }
+        }
+        n.min(f64::from(u32::MAX)) as u32
     }
 
     /// The fastest rates of the model (1/s), by name. RK4 is stable to
@@ -248,24 +295,56 @@ impl PlantParams {
         ]
     }
 
+    /// Refuses a rig whose fastest dynamics would need more than
+    /// `MAX_SUBSTEPS` RK4 steps per PWM period, naming the field that
+    /// makes the rate so fast.
     fn check_step_resolves_dynamics(&self) -> Result<(), ParamError> {
-        let h = self.max_step_s();
+        let f_pwm = self.integration.pwm_frequency_hz;
         for (name, rate) in self.fastest_rates_per_s() {
             if !rate.is_finite() {
-                return Err(ParamError::new("plant", format!("the {name} rate is not finite")));
+                return Err(ParamError::new(rate_field(self, name), format!("makes the {name} rate non-finite")));
             }
             let limit = step_limit(name);
-            if rate * h > limit {
-                let needed = (rate / (limit * self.integration.pwm_frequency_hz)).ceil();
+            let needed = (rate / (limit * f_pwm)).ceil();
+            if needed > f64::from(MAX_SUBSTEPS) {
                 return Err(ParamError::new(
-                    "plant.integration.substeps_per_pwm_period",
+                    rate_field(self, name),
                     format!(
-                        "too few: the {name} rate {rate:.0} 1/s needs rate·step <= {limit}, i.e. at least {needed} substeps"
+                        "makes the {name} rate {rate:.3e} 1/s, which needs {needed} RK4 substeps per PWM period \
+                         (rate·step <= {limit}); the plant takes at most {MAX_SUBSTEPS}, i.e. the rate must be <= {:.3e} 1/s",
+                        limit * f_pwm * f64::from(MAX_SUBSTEPS)
                     ),
                 ));
             }
         }
         Ok(())
+    }
+}
+
+/// Most RK4 steps per PWM period the step rule may ask for. Beyond it a
+/// second of simulated time costs minutes: a rig that needs more has a
+/// value far outside any real cylinder's (a regularisation velocity
+/// thousands of times below the Stribeck velocity, a bumper of steel).
+pub const MAX_SUBSTEPS: u32 = 64;
+
+/// Largest minimum a rig file may ask for itself (convergence studies).
+pub const MAX_MINIMUM_SUBSTEPS: u32 = 1024;
+
+/// Largest |cumulative lead error| a rig file may state: ±300 µm over
+/// 300 mm, beyond the loosest transport grade (C10, ±210 µm / 300 mm).
+pub const LEAD_ERROR_MAX: f64 = 1.0e-3;
+
+/// The rig-file field that governs a rate of `fastest_rates_per_s`.
+fn rate_field(p: &PlantParams, name: &str) -> &'static str {
+    match name {
+        "electrical R/L" if p.motor.inductance_d_h <= p.motor.inductance_q_h => "plant.motor.inductance_d_h",
+        "electrical R/L" => "plant.motor.inductance_q_h",
+        "torsional mode" => "plant.coupling.torsional_stiffness_n_m_rad",
+        "torsional damping" => "plant.coupling.torsional_damping_n_m_s_rad",
+        "axial mode" => "plant.deformation",
+        "axial damping" => "plant.deformation.axial_damping_n_s_m",
+        "end-stop contact" => "plant.stroke.stop_stiffness_n_m",
+        _ => "plant.friction.regularisation_velocity_m_s",
     }
 }
 

@@ -81,9 +81,10 @@ enum Leg {
 
 /// Runs one cycle closed-loop through the control core.
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
-    let mut plant_params = rig.plant.clone();
-    plant_params.rod.payload_mass_kg *= cycle.payload_scale;
-    let mut plant = Plant::new(plant_params, cycle.seed);
+    let mut scaled = rig.clone();
+    scaled.plant.rod.payload_mass_kg *= cycle.payload_scale;
+    scaled.validate().map_err(|e| anyhow::anyhow!("payload ×{}: {e}", cycle.payload_scale))?;
+    let mut plant = Plant::try_new(scaled.plant, cycle.seed).map_err(|e| anyhow::anyhow!("payload ×{}: {e}", cycle.payload_scale))?;
     plant.set_initial_state(0.0, 90f64.to_radians());
     let controller =
         Controller::try_new(crate::sim::commissioned_control(rig.control, &plant)).map_err(|e| anyhow::anyhow!("rig: {e}"))?;

@@ -17,7 +17,7 @@
 //! | before the controller asks, or bridge off | output low | closed |
 //! | debugger halt | frozen at its last level (core stopped, no toggling) | closed |
 //! | interrupt stalled / too slow / not firing | static | closed |
-//! | HardFault, panic (panic-probe → `udf` → HardFault) | driven low by [`force_closed`] | closed |
+//! | any fault or unserved exception, panic (panic-probe → `udf` → HardFault) | driven low by [`force_closed`] in `exceptions::safe_state` | closed |
 //! | release asked, bridge on | 10 kHz square wave | open |
 //!
 //! # Pin choice: PB8 (ESC1 encoder connector, H3 / Z)
