@@ -177,6 +177,8 @@ impl Board {
                 fdcan1: p.FDCAN1,
                 can_rx: p.PA11,
                 can_tx: p.PB9,
+                can_shdn: p.PC11,
+                can_term: p.PC14,
                 flash: p.FLASH,
             }),
             cpu_hz: hclk_hz,
