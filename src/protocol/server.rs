@@ -170,7 +170,7 @@ impl Server {
     fn status<D: DriveAccess>(drive: &D) -> Reply {
         let s = drive.status();
         let t = s.telemetry;
-        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.0, time_s: t.time_s, test_running: s.test_running })
+        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.bits(), time_s: t.time_s, test_running: s.test_running })
     }
 
     /// Staged on a copy, validated whole, then applied: nothing partial.
@@ -437,7 +437,7 @@ impl Server {
             t.load_force_estimate_n,
             t.mode as u8 as f32,
             f32::from_bits(t.faults.bits()),
-            f32::from(t.readiness.0),
+            f32::from(t.readiness.bits()),
         ];
         let mut values = heapless::Vec::new();
         for (bit, v) in all.iter().enumerate() {
