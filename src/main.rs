@@ -45,7 +45,7 @@ use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
 use can_stream::CanStream;
 use servo_core::protocol::{self as proto, DriveFrame, FrameReader, ParamStore, Server};
-use servo_core::{Command, Controller, Mode};
+use servo_core::{Command, Controller, FaultSet, Mode};
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
 /// of defmt (17 floats, mode, options, fault names as indices), so 50 Hz is
@@ -192,7 +192,8 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     // In a function of its own: the controller (≈ 1.3 KB) and the boot
     // parameters live on its stack frame, not in the main task's state
     // (an async body keeps every local whose scope spans an `await`).
-    let params = install_controller(&mut store, watchdog_reset);
+    let hazards = BoardHazards { no_hardware_break: !status.hw_overcurrent_armed, boot_pin_live: !hw::brake::boot_pin_ignored() };
+    let params = install_controller(&mut store, watchdog_reset, hazards);
     let mut can_termination = params.stream.can_termination;
     comms::set_termination(can_termination);
 
@@ -325,13 +326,22 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     }
 }
 
+/// What the board found at start-up that forbids the bridge.
+#[derive(Clone, Copy)]
+struct BoardHazards {
+    /// The comparator self-test failed: no hardware overcurrent break.
+    no_hardware_break: bool,
+    /// The option bytes let PB8 (BOOT0, the brake output) pick the boot mode.
+    boot_pin_live: bool,
+}
+
 /// Builds the controller from the saved set (schema-checked, validated,
 /// lowered to the board's ratings) or the image's (validated when it was
 /// built), attaches the capture store, applies
 /// `control.startup.run_at_power_up` and hands it to the interrupt; the
 /// parameters it runs with.
 #[inline(never)]
-fn install_controller(store: &mut FlashStore, watchdog_reset: bool) -> servo_core::ControlParams {
+fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: BoardHazards) -> servo_core::ControlParams {
     let boot_params = load_params(store);
     let params = *boot_params.get();
     let mut controller = Controller::from_validated(boot_params);
@@ -340,6 +350,10 @@ fn install_controller(store: &mut FlashStore, watchdog_reset: bool) -> servo_cor
     if watchdog_reset {
         controller.report_watchdog_reset();
     }
+    // Standing conditions: the bridge never enables while they stand (the
+    // PWM interrupt keeps it off besides).
+    controller.report_board_condition(FaultSet::NO_HARDWARE_BREAK, hazards.no_hardware_break);
+    controller.report_board_condition(FaultSet::BOOT_OPTION_BYTES, hazards.boot_pin_live);
     let faults = controller.faults();
     if !faults.is_empty() {
         error!("controller refuses to run: faults {}", faults);

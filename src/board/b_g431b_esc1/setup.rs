@@ -56,6 +56,7 @@ impl Board {
         // annotation fails the build if the token here is another one.
         let brake_pin: Peri<'static, brake::Pin> = p.PB8;
         brake::configure_closed();
+        brake::configure_feedback();
 
         let hclk_hz = rcc::clocks(&p.RCC).hclk1.to_hertz().map(|h| h.0).unwrap_or(170_000_000);
         let tim_hz = rcc::frequency::<TIM1>().0;
