@@ -128,7 +128,7 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     let hw::comms::Serial { tx: uart_tx, rx: mut uart_rx } = serial;
     // Replies and telemetry go out through the transmit queue and this
     // task: the main task never waits for USART2 (`comms`, CAN first).
-    match comms::uart_writer(uart_tx) {
+    match uart_writer(uart_tx) {
         Ok(task) => spawner.spawn(task),
         Err(_) => {
             error!("the USART2 writer task could not start");
@@ -444,6 +444,19 @@ fn telemetry_schedule(server: &Server, from: Option<Instant>) -> Option<Instant>
 #[inline(never)]
 fn encode_frame(frame: &DriveFrame, buf: &mut [u8; proto::FRAME_MAX]) -> usize {
     proto::encode(frame, buf).map_or(0, |bytes| bytes.len())
+}
+
+/// Sends what the main task queued, by DMA, for ever. The only code that
+/// awaits USART2's transmitter.
+#[embassy_executor::task]
+async fn uart_writer(mut tx: embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>) {
+    let mut chunk = [0u8; 64];
+    loop {
+        let n = comms::TX_QUEUE.read(&mut chunk).await;
+        if tx.write(chunk.get(..n).unwrap_or(&[])).await.is_err() {
+            warn!("USART2 transmit failed");
+        }
+    }
 }
 
 /// Counts a frame the transmit queue had no room for, and says so (at

@@ -11,8 +11,8 @@
 //! | parameter record | flash pages 62–63 (0x0801_F000…0x0801_FFFF) | two-page A/B record store ([`FlashStore`]) |
 //!
 //! Replies and telemetry are never awaited by the main task: it puts each
-//! encoded frame into [`TX_QUEUE`] (whole or not at all) and the
-//! [`uart_writer`] task sends the queue by DMA. So a 320-byte reply (3.5 ms
+//! encoded frame into [`TX_QUEUE`] (whole or not at all) and a writer task
+//! of its own (`uart_writer` in main.rs) sends the queue by DMA. So a 320-byte reply (3.5 ms
 //! on the line) never holds up CAN reception: the FDCAN receive FIFO holds
 //! 3 frames, and the platform's setpoint frames come every millisecond.
 //!
@@ -146,19 +146,6 @@ pub static TX_QUEUE: Pipe<CriticalSectionRawMutex, TX_QUEUE_LEN> = Pipe::new();
 /// the caller counts and reports it).
 pub fn queue_frame(bytes: &[u8]) -> bool {
     super::comms_sizes::queue_whole(&TX_QUEUE, bytes)
-}
-
-/// Sends what the main task queued, by DMA, for ever. The only code that
-/// awaits USART2's transmitter.
-#[embassy_executor::task]
-pub async fn uart_writer(mut tx: UartTx<'static, Async>) {
-    let mut chunk = [0u8; 64];
-    loop {
-        let n = TX_QUEUE.read(&mut chunk).await;
-        if tx.write(chunk.get(..n).unwrap_or(&[])).await.is_err() {
-            defmt::warn!("USART2 transmit failed");
-        }
-    }
 }
 
 /// Drives the CAN transceiver's two control pins low: shutdown off (the
