@@ -31,7 +31,7 @@ impl Controller {
         self.faults.insert(new);
         // A fault ends a test and triggers a capture armed for it.
         self.finish_test(false);
-        self.capture.event(crate::protocol::CaptureTrigger::Fault);
+        self.capture.event(crate::capture::CaptureTrigger::Fault);
         self.refresh_hooks();
         self.forget_position(new);
         // A failed start-up step is not retried by a later `StartUp` step.

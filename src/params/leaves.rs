@@ -13,7 +13,7 @@
 use core::mem::offset_of;
 
 use super::{ControlParams, HomingMethod};
-use crate::protocol::messages::{Value, ValueKind};
+use super::value::{Value, ValueKind};
 
 /// One parameter: where it is in `ControlParams` and its type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -12,10 +12,12 @@ pub mod leaves;
 mod lifecycle;
 mod live;
 pub mod record;
-mod stream;
+pub mod stream;
 mod validate;
+pub mod value;
 pub use lifecycle::*;
-pub use stream::StreamParams;
+pub use stream::{StreamParams, LEGS};
+pub use value::{Value, ValueKind};
 pub use validate::{ParamError, ValidatedParams};
 
 use serde::{Deserialize, Serialize};

@@ -2,6 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Drives on one platform's setpoint bus: the legs of the Stewart platform,
+/// each reading its own slot of the setpoint frame.
+pub const LEGS: usize = 6;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
