@@ -429,6 +429,21 @@ impl Controller {
         self.raise(FaultSet::WATCHDOG_RESET);
     }
 
+    /// The board reports a standing condition of its own (one of
+    /// [`FaultSet::BOARD_CONDITIONS`]: no hardware break, unsafe boot option
+    /// bytes, brake feedback disagreeing), or that it is gone. Latched as a
+    /// fault at once; while it stands, `ClearFaults` answers
+    /// `CauseStillPresent` and `Enable` is refused.
+    pub fn report_board_condition(&mut self, condition: FaultSet, present: bool) {
+        let condition = condition.intersection(FaultSet::BOARD_CONDITIONS);
+        if present {
+            self.present.insert(condition);
+            self.raise(condition);
+        } else {
+            self.present.remove(condition);
+        }
+    }
+
     /// Whether the next [`Controller::step`] runs the current loop only (no
     /// speed or position tick): the board serves bulk requests (parameter
     /// sets, capture and test-signal requests) in such a period, so that
