@@ -59,10 +59,9 @@ struct Derived {
     /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
     short_circuit_speed_max_rad_s: f32,
     speed_ticks_per_position_tick: u32,
-    /// Streamed setpoints: the longest interpolation interval and the
-    /// timeout, in position periods.
+    /// Streamed setpoints: the longest interpolation interval, in position
+    /// periods.
     stream_max_ticks: u32,
-    stream_timeout_ticks: u32,
 }
 
 impl Derived {
@@ -86,7 +85,6 @@ impl Derived {
             // Validated: a non-zero multiple of the speed divider.
             speed_ticks_per_position_tick: p.rates.position_loop_divider.checked_div(p.rates.speed_loop_divider).unwrap_or(1),
             stream_max_ticks: periods(p.stream.period_max_s, p.position_period_s()),
-            stream_timeout_ticks: periods(p.stream.timeout_s, p.position_period_s()),
         }
     }
 }
