@@ -318,7 +318,7 @@ pub fn decide(i: &Inputs) -> Verdict {
     // remainder): both must carry their own share.
     let rd = i
         .refit_dist
-        .filter(|d| r_valid && !d.locked_to_signals)
+        .filter(|d| (r_valid || flux_gate.is_some()) && !d.locked_to_signals)
         .map(|d| (d.primary_shrink_pct.max(0.0), d.over_stack_points));
     let rd_ok = rd.is_some_and(|(t, add)| {
         t >= MOST_OF_GAP_PCT && add >= DISTURBANCE_OVER_STACK_POINTS && r_total >= DISTURBANCE_OVER_STACK_POINTS
@@ -375,8 +375,12 @@ pub fn decide(i: &Inputs) -> Verdict {
     .into_iter()
     .flatten()
     .fold(0.0, f64::max);
+    // A re-fitted parameter no library effect stands for (torque constant,
+    // flux, compliance, a payload whose weight and inertia agree) leads a
+    // library stack it matches within the tie.
+    let rig_specific = refit.is_some_and(|r| r.rig_specific);
     let lib_leads = lib >= MOST_OF_GAP_PCT
-        && !(r_ok && r_total > lib + LIBRARY_TIE_POINTS)
+        && !(r_ok && (r_total > lib + LIBRARY_TIE_POINTS || rig_specific && r_total >= lib - LIBRARY_TIE_POINTS))
         && !(dist_ok && dist_better)
         && !(const_force >= MOST_OF_GAP_PCT && const_force >= lib + DISTURBANCE_OVER_STACK_POINTS);
     // The rig's flux measured off the back-EMF is this motor's whatever the
