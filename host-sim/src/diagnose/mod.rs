@@ -16,6 +16,7 @@ pub mod effects;
 pub mod events;
 pub mod export;
 pub mod figures;
+pub mod generic;
 pub mod fit;
 pub mod gates;
 pub mod log;
@@ -562,7 +563,14 @@ pub fn diagnose_with(
         d.over_stack_points = d.primary_shrink_pct - rf.primary_shrink_pct.max(0.0);
         (Some(rf), Some(d))
     };
+    // Generic structures on what the stack leaves (torque and position).
+    let generic = if blocked {
+        Vec::new()
+    } else {
+        generic::fit_all(&train, &rem_t, &held, &rem_h, &nominal)
+    };
     let verdict = verdict::decide(&verdict::Inputs {
+        generic: generic::named(&generic),
         refit: refit.as_ref(),
         refit_dist: refit_dist.as_ref(),
         implausible_after_stack,
@@ -630,6 +638,7 @@ pub fn diagnose_with(
         disturbance: Some(dist),
         refit,
         refit_disturbance: refit_dist,
+        generic,
         verdict,
         wall_s: t0.elapsed().as_secs_f64(),
         replay: None,
