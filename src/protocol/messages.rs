@@ -149,6 +149,9 @@ pub struct Info {
     pub faults: u32,
     /// PWM (current-loop) rate, for interpreting captures.
     pub pwm_frequency_hz: f32,
+    /// [`PROTOCOL_VERSION`](super::PROTOCOL_VERSION), for humans and logs;
+    /// compatibility is decided by `schema_hash`.
+    pub protocol_version: u16,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]

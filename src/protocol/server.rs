@@ -167,6 +167,7 @@ impl Server {
             mode: t.mode,
             faults: t.faults.bits(),
             pwm_frequency_hz: drive.params().rates.pwm_frequency_hz,
+            protocol_version: super::PROTOCOL_VERSION,
         })
     }
 
