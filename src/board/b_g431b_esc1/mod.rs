@@ -61,6 +61,7 @@ use embassy_stm32::time::Hertz;
 use servo_core::ControlParams;
 
 pub mod brake;
+pub mod brake_feedback;
 pub mod cal;
 pub mod comms;
 pub mod exceptions;
