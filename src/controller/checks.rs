@@ -103,7 +103,7 @@ impl Controller {
     /// Checks one sample; returns the conditions present now.
     pub(super) fn check_inputs(&mut self, s: &SensorSample) -> FaultSet {
         let f = &self.params.faults;
-        let mut present = self.present.intersection(FaultSet::INVALID_PARAMS);
+        let mut present = self.present.intersection(FaultSet::INVALID_PARAMS.union(FaultSet::BOARD_CONDITIONS));
         let [a, b, c] = s.phase_current_a;
         // One compare checks every input (a branch each costs more at 20 kHz).
         use crate::math::finite_probe;

@@ -336,6 +336,11 @@ impl Controller {
         if self.mode != Mode::Running {
             return Err(CommandError::NotRunning);
         }
+        if self.stream.stopping() {
+            // The stream was lost and the rod is stopping: a late point
+            // does not restart it; the stop ends in `stream_timeout`.
+            return Err(CommandError::Faulted(FaultSet::STREAM_TIMEOUT));
+        }
         if !self.stream.active() && self.move_in_progress() {
             return Err(CommandError::Busy);
         }

@@ -167,6 +167,7 @@ leaves! {
     stream.period_max_s,
     stream.timeout_s,
     stream.leg_index,
+    stream.can_termination,
     thermal.continuous_current_a,
     thermal.time_constant_s,
     thermal.foldback_start,

@@ -98,6 +98,21 @@ faults! {
     POWER_STAGE_OVERTEMP = 27 => power_stage_overtemp,
     /// A setpoint stream stopped arriving for `stream.timeout_s`.
     STREAM_TIMEOUT = 28 => stream_timeout,
+    /// The board's hardware overcurrent break is not armed: its start-up
+    /// self-test found a comparator high with the bridge off (board-reported,
+    /// stands until reset). The bridge never enables without it.
+    NO_HARDWARE_BREAK = 29 => no_hardware_break,
+    /// The option bytes let a pin select the boot mode, and on this board
+    /// that pin carries a load (the ESC1's PB8/BOOT0 is the brake output):
+    /// a reset could start the ROM bootloader instead of the drive
+    /// (board-reported, stands until the option bytes are set and the chip
+    /// reset). The bridge never enables.
+    BOOT_OPTION_BYTES = 30 => boot_option_bytes,
+    /// The holding brake's state feedback disagrees with what the drive
+    /// commands, for longer than the brake takes to move (board-reported):
+    /// a brake that will not open, or one that will not hold. Controlled
+    /// stop: the bridge holds the load, since the brake may not.
+    BRAKE_FEEDBACK = 31 => brake_feedback,
 }
 
 impl FaultSet {
@@ -116,7 +131,8 @@ impl FaultSet {
             .union(Self::OBSERVER_OUT_OF_BOUNDS)
             .union(Self::OPEN_PHASE)
             .union(Self::HOMING_FAILED)
-            .union(Self::STREAM_TIMEOUT);
+            .union(Self::STREAM_TIMEOUT)
+            .union(Self::BRAKE_FEEDBACK);
 
     /// Faults a start-up step raises: the step is refused for good (until
     /// cleared), never enabled around.
@@ -128,6 +144,11 @@ impl FaultSet {
             .union(Self::ROTOR_BLOCKED)
             .union(Self::HOMING_FAILED)
             .union(Self::LIFECYCLE_TIMEOUT);
+
+    /// Conditions the board reports that stand until the board itself says
+    /// they are gone ([`crate::Controller::report_board_condition`]): a
+    /// clear does not remove them while they stand.
+    pub const BOARD_CONDITIONS: Self = Self::NO_HARDWARE_BREAK.union(Self::BOOT_OPTION_BYTES).union(Self::BRAKE_FEEDBACK);
 
     /// The short names of the faults in this set, in bit order.
     pub fn names(self) -> impl Iterator<Item = &'static str> {

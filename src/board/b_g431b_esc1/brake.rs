@@ -85,6 +85,32 @@ impl ReleaseSignal {
     }
 }
 
+/// The brake's state feedback: a contact that closes to ground while the
+/// armature is pulled in (brake released), on PA15 (the ESC1's "PWM" input
+/// pad, free when the drive takes its commands over USART2/CAN) with the
+/// internal pull-up: high = brake applied (or the feedback wire broken),
+/// low = released. docs/firmware.md, *Holding brake*, has the circuit.
+/// False: no feedback fitted, the pin left alone.
+pub const FEEDBACK_FITTED: bool = false;
+pub const FEEDBACK_PORT: pac::gpio::Gpio = pac::GPIOA;
+pub const FEEDBACK_PIN: usize = 15;
+
+pub use super::brake_feedback::{FeedbackVerdict, FeedbackWatch};
+
+/// Configures the feedback input (pull-up, input mode) if one is fitted.
+pub fn configure_feedback() {
+    if FEEDBACK_FITTED {
+        FEEDBACK_PORT.pupdr().modify(|w| w.set_pupdr(FEEDBACK_PIN, pac::gpio::vals::Pupdr::PULL_UP));
+        FEEDBACK_PORT.moder().modify(|w| w.set_moder(FEEDBACK_PIN, pac::gpio::vals::Moder::INPUT));
+    }
+}
+
+/// Whether the feedback says the brake is released (contact closed, pin low).
+#[inline(always)]
+pub fn feedback_released() -> bool {
+    FEEDBACK_PORT.idr().read().idr(FEEDBACK_PIN) == pac::gpio::vals::Idr::LOW
+}
+
 /// True if the option bytes make the chip ignore the BOOT0 pin (nSWBOOT0 =
 /// 0) and boot from flash (nBOOT0 = 1), as the ESC1 ships: then the brake
 /// driver's load on PB8 cannot change how the chip boots.

@@ -57,6 +57,11 @@ pub struct IsrState {
     last_entry_cycles: u32,
     have_last_entry: bool,
     brake: brake::ReleaseSignal,
+    /// The release signal of the latest period (what the feedback must show).
+    brake_release_commanded: bool,
+    brake_feedback: brake::FeedbackWatch,
+    /// The feedback fault as last reported to the controller.
+    brake_feedback_fault: bool,
     periods_to_snapshot: u32,
     /// A bulk request taken in a period with a speed or position tick,
     /// served in the next one (which runs the current loop only).
@@ -99,6 +104,9 @@ impl IsrState {
             last_entry_cycles: 0,
             have_last_entry: false,
             brake: brake::ReleaseSignal::new(),
+            brake_release_commanded: false,
+            brake_feedback: brake::FeedbackWatch::new(),
+            brake_feedback_fault: false,
             periods_to_snapshot: 0,
             deferred: None,
         }
@@ -237,7 +245,26 @@ impl IsrState {
         }
         // Board interlock: the brake opens only while the bridge drives the
         // motor (a hardware break or a bad duty closes it in the same period).
-        self.brake.drive(cmd.brake_release && bridge_on && !self.hw_trip);
+        self.brake_release_commanded = cmd.brake_release && bridge_on && !self.hw_trip;
+        self.brake.drive(self.brake_release_commanded);
+    }
+
+    /// The brake's feedback against the command: a disagreement longer
+    /// than the brake takes to move latches `BRAKE_FEEDBACK` (a controlled
+    /// stop: the bridge holds the load); agreement again lets it clear.
+    fn watch_brake_feedback(&mut self) {
+        let verdict = self.brake_feedback.update(self.brake_release_commanded, brake::feedback_released());
+        let fault = match verdict {
+            brake::FeedbackVerdict::Agrees => false,
+            brake::FeedbackVerdict::Settling => return,
+            brake::FeedbackVerdict::Disagrees => true,
+        };
+        if fault != self.brake_feedback_fault {
+            self.brake_feedback_fault = fault;
+            if let Some(c) = self.link.controller() {
+                c.report_board_condition(servo_core::protection::FaultSet::BRAKE_FEEDBACK, fault);
+            }
+        }
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -370,6 +397,9 @@ fn ADC1_2() {
         }
     };
     s.apply(cmd);
+    if brake::FEEDBACK_FITTED {
+        s.watch_brake_feedback();
+    }
 
     // A newer sequence already complete: this step came too late for it.
     if adc1.isr().read().jeos() {

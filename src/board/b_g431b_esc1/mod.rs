@@ -61,12 +61,14 @@ use embassy_stm32::time::Hertz;
 use servo_core::ControlParams;
 
 pub mod brake;
+pub mod brake_feedback;
 pub mod cal;
 pub mod comms;
 pub mod exceptions;
 mod handle;
 mod isr;
 mod setup;
+pub mod comms_sizes;
 
 pub use handle::Board;
 pub use setup::set_interrupt_priorities;
@@ -162,6 +164,22 @@ pub fn clock_config() -> embassy_stm32::Config {
     config.rcc.mux.fdcansel = embassy_stm32::rcc::mux::Fdcansel::PCLK1;
     config
 }
+
+/// The ESC1 switches a 120 Ω CAN bus terminator with PC14 (CAN_TERM), so
+/// it can drive either value of `control.stream.can_termination`. A board
+/// without the switch sets this false, and then refuses a set that asks
+/// for termination.
+pub const CAN_TERMINATION_SWITCHABLE: bool = true;
+
+/// Whether this board can do the bus termination `params` asks for.
+pub const fn can_drive_termination(params: &ControlParams) -> bool {
+    !params.stream.can_termination || CAN_TERMINATION_SWITCHABLE
+}
+
+const _: () = assert!(
+    can_drive_termination(&PARAMS),
+    "control.stream.can_termination: this board cannot switch a CAN bus terminator"
+);
 
 /// Flash prefetch and the instruction and data caches on (reset leaves
 /// them off; embassy's `init` sets only the wait states, 4 at 170 MHz):

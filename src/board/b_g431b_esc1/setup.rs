@@ -56,6 +56,7 @@ impl Board {
         // annotation fails the build if the token here is another one.
         let brake_pin: Peri<'static, brake::Pin> = p.PB8;
         brake::configure_closed();
+        brake::configure_feedback();
 
         let hclk_hz = rcc::clocks(&p.RCC).hclk1.to_hertz().map(|h| h.0).unwrap_or(170_000_000);
         let tim_hz = rcc::frequency::<TIM1>().0;
@@ -177,6 +178,8 @@ impl Board {
                 fdcan1: p.FDCAN1,
                 can_rx: p.PA11,
                 can_tx: p.PB9,
+                can_shdn: p.PC11,
+                can_term: p.PC14,
                 flash: p.FLASH,
             }),
             cpu_hz: hclk_hz,
