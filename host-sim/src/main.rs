@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use rayon::prelude::*;
 use host_sim::config::RigConfig;
 use host_sim::report::{self, csv_out, metrics, plots};
+use host_sim::rigs::FamilySpec;
 use host_sim::scenario::dataset::{self, DatasetSpec};
 use host_sim::scenario::{run_stroke_cycle, StrokeCycle};
 use std::path::PathBuf;
@@ -96,6 +97,11 @@ enum Cmd {
         #[arg(long)]
         params: Option<PathBuf>,
     },
+    /// A family of rigs a second unit of the cylinder could be, drawn from
+    /// a rig file within stated tolerances: DIR/rig_NNN.toml, the five
+    /// corners (softer, stiffer, heavier, more friction, combined) and
+    /// DIR/family.json. Every suite takes one with --family DIR.
+    Rigs(RigsArgs),
     Dataset {
         #[arg(long)]
         out: PathBuf,
@@ -110,6 +116,78 @@ enum Cmd {
         #[arg(long, default_value_t = DatasetSpec::default().seed)]
         seed: u64,
     },
+}
+
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+struct RigsArgs {
+    /// Output folder (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Drawn rigs (the corners come on top).
+    #[arg(long)]
+    count: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Base rig file; default: the shipped nominal rig.
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Leave out the five corner rigs.
+    #[arg(long)]
+    no_corners: bool,
+    /// Structure stiffness, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().stiffness_tol)]
+    stiffness_tol: f64,
+    /// Coulomb friction, viscous friction and the screw's friction coefficient, each ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().friction_tol)]
+    friction_tol: f64,
+    /// Payload range, fractions of the base (rated) payload.
+    #[arg(long, default_value_t = FamilySpec::default().payload_min)]
+    payload_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().payload_max)]
+    payload_max: f64,
+    /// Rotor, coupling and screw inertia, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().inertia_tol)]
+    inertia_tol: f64,
+    /// Winding resistance factor range (cold to hot).
+    #[arg(long, default_value_t = FamilySpec::default().resistance_min)]
+    resistance_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().resistance_max)]
+    resistance_max: f64,
+    /// d/q inductance, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().inductance_tol)]
+    inductance_tol: f64,
+    /// Magnet flux factor range.
+    #[arg(long, default_value_t = FamilySpec::default().flux_min)]
+    flux_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().flux_max)]
+    flux_max: f64,
+    /// Cumulative lead error bound, m/m (default: C7, 52 µm over 300 mm).
+    #[arg(long, default_value_t = FamilySpec::default().lead_error_max)]
+    lead_error_max: f64,
+}
+
+fn rigs(a: RigsArgs) -> Result<()> {
+    let spec = FamilySpec {
+        stiffness_tol: a.stiffness_tol,
+        friction_tol: a.friction_tol,
+        payload_min: a.payload_min,
+        payload_max: a.payload_max,
+        inertia_tol: a.inertia_tol,
+        resistance_min: a.resistance_min,
+        resistance_max: a.resistance_max,
+        inductance_tol: a.inductance_tol,
+        flux_min: a.flux_min,
+        flux_max: a.flux_max,
+        lead_error_max: a.lead_error_max,
+    };
+    let (text, origin) = match &a.params {
+        Some(p) => (std::fs::read_to_string(p).with_context(|| format!("reading rig file {}", p.display()))?, p.display().to_string()),
+        None => (host_sim::config::DEFAULT_RIG_TOML.to_string(), "params/rig.toml".to_string()),
+    };
+    let list = host_sim::rigs::write_family(&text, &origin, &spec, a.count, a.seed, !a.no_corners, &a.out)?;
+    println!("wrote {} rig files and family.json to {}", list.len(), a.out.display());
+    Ok(())
 }
 
 fn main() -> Result<()> {
@@ -141,6 +219,7 @@ fn main() -> Result<()> {
             println!("wrote {}/{{summary.json, table4.md, geometry.png, *_pose_*.png, *_leg_*.png}}", out.display());
             Ok(())
         }
+        Cmd::Rigs(a) => rigs(a),
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
         }
