@@ -36,6 +36,10 @@ enum Cmd {
         /// compensation on, and report before/after.
         #[arg(long)]
         observer: bool,
+        /// Run on every rig of a family (`host-sim rigs`) instead: a row
+        /// per rig and the worst case in summary.json, family.md.
+        #[arg(long, conflicts_with_all = ["params", "observer"])]
+        family: Option<PathBuf>,
     },
     /// Fault injection: every scenario of docs/reliability.md, closed loop.
     /// Writes summary.json, reliability_measured.md and a trace per scenario.
@@ -44,6 +48,9 @@ enum Cmd {
         out: PathBuf,
         #[arg(long)]
         params: Option<PathBuf>,
+        /// Every scenario on every rig of a family (`host-sim rigs`).
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
     /// Train the IBAS-BPNN error observer (paper §4.1) on a dataset and write
     /// the firmware's model source. Writes summary.json, model.json, model.rs
@@ -68,6 +75,9 @@ enum Cmd {
         homings: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// The same cases on every rig of a family (`host-sim rigs`); no homings.
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
     Train(host_sim::trainer::TrainArgs),
     /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
@@ -192,15 +202,29 @@ fn rigs(a: RigsArgs) -> Result<()> {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::Paper { out, params, seed, observer } => paper(out, params, seed, observer),
-        Cmd::Faults { out, params } => {
+        Cmd::Paper { out, family: Some(dir), seed, .. } => {
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, &out)?, &out)
+        }
+        Cmd::Paper { out, params, seed, observer, family: None } => paper(out, params, seed, observer),
+        Cmd::Faults { out, family: Some(dir), .. } => {
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            family_done(host_sim::fault_injection::family::run_family(&rigs, &dir, &out)?, &out)
+        }
+        Cmd::PowerUp { out, family: Some(dir), power_ups, rod_min_m, rod_max_m, seed, .. } => {
+            check_rod_range(rod_min_m, rod_max_m)?;
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            let s = host_sim::power_up::family::run_family(&rigs, &dir, power_ups, (rod_min_m, rod_max_m), seed, &out)?;
+            family_done(s, &out)
+        }
+        Cmd::Faults { out, params, family: None } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
             let rows = host_sim::fault_injection::report::run_catalog(&rig, &out)?;
             print!("{}", host_sim::fault_injection::report::markdown_table(&rows));
             println!("{} of {} scenarios meet their requirement", rows.iter().filter(|r| r.passed).count(), rows.len());
             Ok(())
         }
-        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed } => {
+        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed, family: None } => {
             power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
@@ -290,9 +314,7 @@ fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64, observer: bool) -> Re
 fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64) -> Result<()> {
     use host_sim::power_up;
     let (lo, hi) = rod_m;
-    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 0.5) {
-        anyhow::bail!("--rod-min-m / --rod-max-m: need 0 <= min < max <= 0.5 (the stroke), got {lo} / {hi}");
-    }
+    check_rod_range(lo, hi)?;
     let rig = RigConfig::load_or_nominal(params.as_ref())?;
     let t0 = std::time::Instant::now();
     let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
@@ -307,5 +329,24 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     }
     println!("{}", serde_json::to_string_pretty(&brief)?);
     print!("{}", std::fs::read_to_string(out.join("cases.md"))?);
+    Ok(())
+}
+
+fn check_rod_range(lo: f64, hi: f64) -> Result<()> {
+    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 0.5) {
+        anyhow::bail!("--rod-min-m / --rod-max-m: need 0 <= min < max <= 0.5 (the stroke), got {lo} / {hi}");
+    }
+    Ok(())
+}
+
+/// Prints a family mode's per-rig table and worst cases; fails when a rig did.
+fn family_done(summary: serde_json::Value, out: &std::path::Path) -> Result<()> {
+    print!("{}", std::fs::read_to_string(out.join("family.md"))?);
+    println!("worst: {}", serde_json::to_string_pretty(&summary["worst"])?);
+    let failed = summary["rigs_failed"].as_array().map_or(0, Vec::len);
+    println!("{} of {} rigs pass; wrote {}/{{summary.json, family.md}} and a folder per rig", summary["rigs_passed"], summary["rigs"], out.display());
+    if failed > 0 {
+        anyhow::bail!("{failed} rig(s) failed: {}", summary["rigs_failed"]);
+    }
     Ok(())
 }
