@@ -7,7 +7,9 @@
 //!
 //! Layout: `foc/` is the current loop (every PWM period), `motion/` the
 //! encoder tracking, speed and position loops and the trajectory, `protection/`
-//! faults and limits, `params` every gain, rate and limit.
+//! faults and limits, `params` every gain, rate and limit, `reason` why a
+//! request is refused. `protocol` carries these words over a link and sits on
+//! top: nothing else in the core imports it.
 #![no_std]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 #![warn(missing_debug_implementations)]
@@ -30,6 +32,7 @@ pub mod params;
 pub mod pi;
 pub mod protection;
 pub mod protocol;
+pub mod reason;
 pub mod telemetry;
 pub mod test_signals;
 
@@ -37,5 +40,6 @@ pub use controller::{Command, CommandError, CommandOutcome, Controller};
 pub use io::{PwmCommand, SensorSample};
 pub use params::{ControlParams, ParamError};
 pub use protection::{FaultSet, LimitFlags};
+pub use reason::Reason;
 pub use lifecycle::Readiness;
 pub use telemetry::{Mode, Telemetry};

@@ -25,16 +25,14 @@
 #![no_main]
 
 mod board;
+mod can_stream;
 mod hal_log;
 mod masking;
-mod mem;
-mod udiv;
 
 use board::active as hw;
 use board::drive::{BoardDrive, ParamsCache};
 use board::link::{self, Reply, Request};
 use board::{Calibration, ServoBoard, ISR_STATS};
-use cortex_m_rt::{exception, ExceptionFrame};
 use defmt::{error, info, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
@@ -45,8 +43,9 @@ use hal_log::{CanFault, UsartFault};
 use hw::comms::{self, FlashStore};
 use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
-use servo_core::protocol::{self as proto, can, DriveCommand, DriveFrame, FrameReader, ParamStore, RequestFrame, Server, StreamPoint};
-use servo_core::{Command, Controller, Mode};
+use can_stream::CanStream;
+use servo_core::protocol::{self as proto, DriveFrame, FrameReader, ParamStore, Server};
+use servo_core::{Command, Controller, FaultSet, Mode};
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
 /// of defmt (17 floats, mode, options, fault names as indices), so 50 Hz is
@@ -67,9 +66,6 @@ const OFFSET_CALIBRATION_SAMPLES: u32 = 2048;
 /// Poll period while waiting at start-up (offsets, power-up steps): well
 /// inside the watchdog timeout.
 const STARTUP_POLL: Duration = Duration::from_millis(10);
-/// No CAN setpoint frame for this long: the next one may restart the
-/// sequence count (the platform controller restarted).
-const CAN_SEQ_RESET: Duration = Duration::from_millis(100);
 
 /// Who the drive is, for `Info`.
 const IDENTITY: proto::Identity = proto::Identity {
@@ -79,16 +75,16 @@ const IDENTITY: proto::Identity = proto::Identity {
 };
 
 #[embassy_executor::main]
-async fn main(_spawner: Spawner) {
+async fn main(spawner: Spawner) {
     // `run` returns only to park: one `park` future in the task, not one
     // per way of failing (each inlined copy cost ≈ 120 bytes of flash).
-    let dog = run().await;
+    let dog = run(spawner).await;
     park(dog).await
 }
 
 /// Brings the drive up and then serves it for ever; returns only when the
 /// start-up failed, with the watchdog if it runs already, to be parked.
-async fn run() -> Option<Watchdog> {
+async fn run(spawner: Spawner) -> Option<Watchdog> {
     // Priorities before `init` enables the time driver's interrupt: from the
     // first instant, nothing but the PWM interrupt sits at priority 0.
     hw::set_interrupt_priorities();
@@ -107,8 +103,10 @@ async fn run() -> Option<Watchdog> {
     let mut cp = unsafe { cortex_m::Peripherals::steal() };
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
+    hw::exceptions::enable_fault_exceptions(&mut cp.SCB);
+    hw::enable_flash_acceleration();
     if !hw::brake::boot_pin_ignored() {
-        warn!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode; set nSWBOOT0 = 0, nBOOT0 = 1");
+        error!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode: the bridge stays off; set nSWBOOT0 = 0, nBOOT0 = 1 (docs/firmware.md, Flashing)");
     }
 
     let mut board = match board::bring_up(p) {
@@ -127,7 +125,16 @@ async fn run() -> Option<Watchdog> {
         error!("USART2 configuration refused (baud rate {=u32})", comms::BAUD);
         return None;
     };
-    let hw::comms::Serial { tx: mut uart_tx, rx: mut uart_rx } = serial;
+    let hw::comms::Serial { tx: uart_tx, rx: mut uart_rx } = serial;
+    // Replies and telemetry go out through the transmit queue and this
+    // task: the main task never waits for USART2 (`comms`, CAN first).
+    match uart_writer(uart_tx) {
+        Ok(task) => spawner.spawn(task),
+        Err(_) => {
+            error!("the USART2 writer task could not start");
+            return None;
+        }
+    }
     info!(
         "USART2 {=u32} Bd (ST-LINK VCP); FDCAN1 {=u32}/{=u32} bit/s, leg slot from control.stream.leg_index",
         comms::BAUD,
@@ -159,8 +166,8 @@ async fn run() -> Option<Watchdog> {
         hw::DEAD_TIME_NS,
         status.hw_overcurrent_armed
     );
-    if !status.hw_overcurrent_armed && hw::HW_OVERCURRENT_BREAK {
-        error!("a comparator was high with the bridge off: hardware overcurrent break NOT armed");
+    if !status.hw_overcurrent_armed {
+        error!("comparator self-test failed (a comparator high with the bridge off): no hardware overcurrent break, the bridge stays off");
     }
 
     // Current offsets with the bridge off.
@@ -185,7 +192,10 @@ async fn run() -> Option<Watchdog> {
     // In a function of its own: the controller (≈ 1.3 KB) and the boot
     // parameters live on its stack frame, not in the main task's state
     // (an async body keeps every local whose scope spans an `await`).
-    let params = install_controller(&mut store, watchdog_reset);
+    let hazards = BoardHazards { no_hardware_break: !status.hw_overcurrent_armed, boot_pin_live: !hw::brake::boot_pin_ignored() };
+    let params = install_controller(&mut store, watchdog_reset, hazards);
+    let mut can_termination = params.stream.can_termination;
+    comms::set_termination(can_termination);
 
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
     let mut tick: u32 = 0;
@@ -198,6 +208,7 @@ async fn run() -> Option<Watchdog> {
     let mut out = [0u8; proto::FRAME_MAX];
     let mut next_telemetry: Option<Instant> = None;
     let mut can_state = CanStream::default();
+    let mut tx_dropped: u32 = 0;
     loop {
         let telemetry_due = async {
             match next_telemetry {
@@ -205,13 +216,14 @@ async fn run() -> Option<Watchdog> {
                 None => core::future::pending().await,
             }
         };
-        let event = select4(ticker.next(), uart_rx.read(&mut rx_bytes), can_bus.read_fd(), telemetry_due).await;
+        // CAN first: when several are ready, the setpoint stream wins (the
+        // FDCAN receive FIFO holds 3 frames; the UART ring 5.6 ms of bytes).
+        let event = select4(can_bus.read_fd(), uart_rx.read(&mut rx_bytes), ticker.next(), telemetry_due).await;
         match event {
-            Either4::First(()) => {}
+            Either4::Third(()) => {}
             Either4::Second(Ok(n)) => {
                 for &byte in rx_bytes.iter().take(n) {
-                    // Encoded before the `await`: only the bytes are held
-                    // while the DMA sends them, not the reply as well.
+                    // Queued, not awaited: the writer task sends it.
                     let len = {
                         let mut drive = BoardDrive::new(&mut board, &params_cache);
                         match server.receive(&mut reader, byte, &mut drive, &mut store) {
@@ -219,9 +231,17 @@ async fn run() -> Option<Watchdog> {
                             None => 0,
                         }
                     };
-                    send_bytes(&mut uart_tx, out.get(..len).unwrap_or(&[])).await;
+                    if !comms::queue_frame(out.get(..len).unwrap_or(&[])) {
+                        tx_dropped = report_dropped(tx_dropped);
+                    }
                 }
                 next_telemetry = telemetry_schedule(&server, next_telemetry);
+                // A parameter set may have switched the bus terminator.
+                if params_cache.can_termination() != can_termination {
+                    can_termination = !can_termination;
+                    comms::set_termination(can_termination);
+                    info!("CAN bus terminator {}", if can_termination { "in" } else { "out" });
+                }
                 dog.feed_if_isr_alive();
                 continue;
             }
@@ -231,7 +251,7 @@ async fn run() -> Option<Watchdog> {
                 reader = FrameReader::new();
                 continue;
             }
-            Either4::Third(Ok(envelope)) => {
+            Either4::First(Ok(envelope)) => {
                 let frame = envelope.frame;
                 if let Some(id) = comms::standard_id(&frame) {
                     let mut drive = BoardDrive::new(&mut board, &params_cache);
@@ -239,7 +259,7 @@ async fn run() -> Option<Watchdog> {
                 }
                 continue;
             }
-            Either4::Third(Err(e)) => {
+            Either4::First(Err(e)) => {
                 can_state.bus_errors = can_state.bus_errors.wrapping_add(1);
                 if can_state.bus_errors.is_power_of_two() {
                     warn!("FDCAN1 bus error {} ({=u32} so far)", CanFault::from(e), can_state.bus_errors);
@@ -253,7 +273,9 @@ async fn run() -> Option<Watchdog> {
                     Some((t, _)) => encode_frame(&DriveFrame::Telemetry(server.telemetry_frame(&t)), &mut out),
                     None => 0,
                 };
-                send_bytes(&mut uart_tx, out.get(..len).unwrap_or(&[])).await;
+                if !comms::queue_frame(out.get(..len).unwrap_or(&[])) {
+                    tx_dropped = report_dropped(tx_dropped);
+                }
                 continue;
             }
         }
@@ -304,13 +326,22 @@ async fn run() -> Option<Watchdog> {
     }
 }
 
+/// What the board found at start-up that forbids the bridge.
+#[derive(Clone, Copy)]
+struct BoardHazards {
+    /// The comparator self-test failed: no hardware overcurrent break.
+    no_hardware_break: bool,
+    /// The option bytes let PB8 (BOOT0, the brake output) pick the boot mode.
+    boot_pin_live: bool,
+}
+
 /// Builds the controller from the saved set (schema-checked, validated,
 /// lowered to the board's ratings) or the image's (validated when it was
 /// built), attaches the capture store, applies
 /// `control.startup.run_at_power_up` and hands it to the interrupt; the
 /// parameters it runs with.
 #[inline(never)]
-fn install_controller(store: &mut FlashStore, watchdog_reset: bool) -> servo_core::ControlParams {
+fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: BoardHazards) -> servo_core::ControlParams {
     let boot_params = load_params(store);
     let params = *boot_params.get();
     let mut controller = Controller::from_validated(boot_params);
@@ -319,6 +350,10 @@ fn install_controller(store: &mut FlashStore, watchdog_reset: bool) -> servo_cor
     if watchdog_reset {
         controller.report_watchdog_reset();
     }
+    // Standing conditions: the bridge never enables while they stand (the
+    // PWM interrupt keeps it off besides).
+    controller.report_board_condition(FaultSet::NO_HARDWARE_BREAK, hazards.no_hardware_break);
+    controller.report_board_condition(FaultSet::BOOT_OPTION_BYTES, hazards.boot_pin_live);
     let faults = controller.faults();
     if !faults.is_empty() {
         error!("controller refuses to run: faults {}", faults);
@@ -368,6 +403,13 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
         warn!("saved parameters lowered to the board's ratings: {}", applied);
     }
     match ValidatedParams::new(lowered) {
+        Ok(v) if !hw::can_drive_termination(v.get()) => {
+            warn!(
+                "parameters: image defaults (saved set asks for leaf {=u16}, control.stream.can_termination, which this board cannot switch)",
+                servo_core::leaf!(stream.can_termination)
+            );
+            board::VALID_PARAMS
+        }
         Ok(v) => {
             info!("parameters: loaded from flash ({=usize} bytes, schema checked)", n);
             v
@@ -404,96 +446,27 @@ fn encode_frame(frame: &DriveFrame, buf: &mut [u8; proto::FRAME_MAX]) -> usize {
     proto::encode(frame, buf).map_or(0, |bytes| bytes.len())
 }
 
-/// Writes `bytes` to USART2 by DMA (nothing for an empty slice).
-async fn send_bytes(tx: &mut embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>, bytes: &[u8]) {
-    if !bytes.is_empty() && tx.write(bytes).await.is_err() {
-        warn!("USART2 transmit failed");
+/// Sends what the main task queued, by DMA, for ever. The only code that
+/// awaits USART2's transmitter.
+#[embassy_executor::task]
+async fn uart_writer(mut tx: embassy_stm32::usart::UartTx<'static, embassy_stm32::mode::Async>) {
+    let mut chunk = [0u8; 64];
+    loop {
+        let n = comms::TX_QUEUE.read(&mut chunk).await;
+        if tx.write(chunk.get(..n).unwrap_or(&[])).await.is_err() {
+            warn!("USART2 transmit failed");
+        }
     }
 }
 
-/// The CAN setpoint stream's receiving side: sequence order and counters.
-#[derive(Default)]
-struct CanStream {
-    last_seq: Option<u16>,
-    last_at: Option<Instant>,
-    accepted: u32,
-    refused: u32,
-    stale: u32,
-    bad: u32,
-    other_legs: u32,
-    bus_errors: u32,
-}
-
-impl CanStream {
-    /// One frame: decoded and checked whole (`protocol::can`), in sequence,
-    /// then this leg's slot goes the way of `Request::Stream` (the server's
-    /// stream checks), a stop frame naming this leg the way of
-    /// `DriveCommand::Stop`.
-    fn receive<D: proto::DriveAccess, S: ParamStore>(
-        &mut self,
-        id: u16,
-        data: &[u8],
-        leg: u32,
-        server: &mut Server,
-        drive: &mut D,
-        store: &mut S,
-    ) {
-        let message = match can::decode(id, data) {
-            Ok(m) => m,
-            Err(e) => {
-                self.bad = self.bad.wrapping_add(1);
-                if self.bad.is_power_of_two() {
-                    warn!("CAN frame 0x{=u16:x} refused: {} ({=u32} so far)", id, e, self.bad);
-                }
-                return;
-            }
-        };
-        let now = Instant::now();
-        let fresh = self.last_at.is_none_or(|t| now - t > CAN_SEQ_RESET);
-        if let (Some(last), false) = (self.last_seq, fresh) {
-            if !can::is_newer(message.seq(), last) {
-                self.stale = self.stale.wrapping_add(1);
-                return;
-            }
-        }
-        self.last_seq = Some(message.seq());
-        self.last_at = Some(now);
-        let request = match message {
-            can::CanMessage::Setpoints { legs, .. } => match can::slot(&legs, leg) {
-                Some(sp) => proto::Request::Stream(StreamPoint {
-                    position_m: sp.position_m,
-                    velocity_m_s: sp.velocity_m_s,
-                    force_n: sp.force_n,
-                }),
-                None => {
-                    self.other_legs = self.other_legs.wrapping_add(1);
-                    return;
-                }
-            },
-            can::CanMessage::Stop { legs, .. } => {
-                if !can::names_leg(legs, leg) {
-                    self.other_legs = self.other_legs.wrapping_add(1);
-                    return;
-                }
-                self.last_seq = None;
-                proto::Request::Command(DriveCommand::Stop)
-            }
-        };
-        let frame = RequestFrame { seq: 0, request };
-        match server.handle(&frame, drive, store) {
-            Some(DriveFrame::Reply { reply: proto::Reply::Error(e), .. }) => {
-                self.refused = self.refused.wrapping_add(1);
-                if self.refused.is_power_of_two() {
-                    // The reason by its code's name (defmt: no text in flash).
-                    match &e {
-                        proto::Error::Stream { reason } => warn!("CAN setpoint refused ({=u32} so far): {}", self.refused, reason),
-                        _ => warn!("CAN stop refused ({=u32} so far)", self.refused),
-                    }
-                }
-            }
-            _ => self.accepted = self.accepted.wrapping_add(1),
-        }
+/// Counts a frame the transmit queue had no room for, and says so (at
+/// powers of two, so a stalled host does not flood the log).
+fn report_dropped(dropped: u32) -> u32 {
+    let n = dropped.wrapping_add(1);
+    if n.is_power_of_two() {
+        warn!("USART2 transmit queue full: frame dropped ({=u32} so far)", n);
     }
+    n
 }
 
 /// LED: on = running, 1 Hz blink = disabled (waiting for a command), 5 Hz =
@@ -595,20 +568,5 @@ async fn park(mut dog: Option<Watchdog>) -> ! {
         if ticks.is_multiple_of(500) {
             error!("parked: see the first error above");
         }
-    }
-}
-
-/// Any fault, a panic included (panic-probe ends in `udf`, which is a
-/// HardFault): switch the bridge off (MOE) and stop the brake's release
-/// signal (pin low), then stay here. Two register stores, no stack use
-/// beyond the frame: works with a corrupted stack pointer region too. With a
-/// debugger attached, probe-rs halts here; the DBGMCU freeze already
-/// disabled the TIM1 outputs, and the brake closed when the toggling stopped.
-#[exception]
-unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
-    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-    hw::brake::force_closed();
-    loop {
-        cortex_m::asm::nop();
     }
 }

@@ -37,7 +37,8 @@ use servo_core::foc::{
 use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
 use servo_core::capture::CaptureStore;
 use servo_core::observer;
-use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, Signal};
+use servo_core::params::ValidatedParams;
+use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, Signal, TestSignal};
 use servo_core::pi::Pi;
 use servo_core::{ControlParams, Controller, Mode, PwmCommand, SensorSample};
 
@@ -246,6 +247,121 @@ fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats, Stats, Sta
     (cur, spd, pos, off, faults_seen)
 }
 
+/// A bulk request the PWM interrupt serves between two steps.
+#[derive(Clone, Copy, PartialEq)]
+enum Bulk {
+    /// `ApplyParams`: a whole validated set (a live gain change, so the
+    /// bumpless retune runs).
+    ApplyParams,
+    /// `Bulk(Capture(Configure))`: four signals, 1024 samples.
+    CaptureConfigure,
+    /// `Bulk(Test)`: a 10 µm position step test started.
+    TestStart,
+}
+
+/// One serving of `op` as the interrupt does it: the payload taken from the
+/// link's slot (a copy of the slot's size, which is the parameter set's),
+/// the controller's call, and the snapshot the interrupt publishes after
+/// every request (telemetry and the move flag).
+#[inline(never)]
+fn serve_bulk(c: &mut Controller, op: Bulk, set: &ValidatedParams, cfg: &CaptureConfig) {
+    let payload = black_box(*set);
+    match op {
+        Bulk::ApplyParams => {
+            let _ = black_box(c.apply_params(&payload));
+        }
+        Bulk::CaptureConfigure => {
+            let _ = black_box(c.capture_configure(cfg));
+        }
+        Bulk::TestStart => {
+            let signal = TestSignal::PositionStep { distance_m: 10e-6, duration_s: 0.005 };
+            let _ = black_box(c.start_test(signal));
+        }
+    }
+    black_box((c.telemetry(), c.move_in_progress()));
+}
+
+/// The longest PWM period with bulk requests in it: the golden closed loop,
+/// with `op` served before the step of every 7th period while the drive
+/// runs (7 is prime to the dividers 4 and 20, so the requests land in
+/// every kind of period). `in_any_period`: served wherever it lands; else
+/// as the firmware's interrupt does, held back to the next period that runs
+/// the current loop only (`Controller::next_period_is_current_only`).
+/// Returns the longest (step + request) period by kind (current-only,
+/// speed, position) and how many requests the controller accepted.
+fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_period: bool) -> ([u32; 3], u32) {
+    let mut bench = p.commissioned();
+    bench.startup.expected_load_force_n = 0.0;
+    bench.brake.fitted = false;
+    let mut c = Controller::new(bench);
+    static STORE: CaptureStore = CaptureStore::new();
+    c.attach_capture_store(&STORE);
+    let cfg = CaptureConfig {
+        signals: heapless::Vec::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or_default(),
+        decimation: 1,
+        samples: 1024,
+        pre_trigger: 512,
+        trigger: CaptureTrigger::Command,
+    };
+    // Two sets a live proportional gain apart: each apply retunes.
+    let mut alt = bench;
+    alt.current_pi.kp *= 1.01;
+    let sets = [ValidatedParams::new(bench), ValidatedParams::new(alt)];
+    let mut plant = RigidPlant::new(p, 48.0);
+    let mut noise = Noise::new(7);
+    let mut out = PwmCommand::OFF;
+    let speed_div = p.rates.speed_loop_divider as usize;
+    let pos_div = p.rates.position_loop_divider as usize;
+    let mut worst = [0u32; 3];
+    let mut accepted = 0u32;
+    let mut pending = false;
+    for k in 0..golden::CLOSED_LOOP_PERIODS {
+        for (_, cmd) in CLOSED_LOOP_SCRIPT.iter().filter(|(at, _)| *at == k) {
+            let _ = c.command(*cmd);
+        }
+        plant.advance(&out);
+        let mut s = plant.sample();
+        for i in s.phase_current_a.iter_mut() {
+            *i += 0.03 * noise.next();
+        }
+        let running = c.mode() == Mode::Running;
+        if running && k % 7 == 0 && !(op == Bulk::TestStart && c.test_running()) {
+            pending = true;
+        }
+        let serve = pending && (in_any_period || c.next_period_is_current_only());
+        let set = sets.get(k % 2).and_then(|v| v.as_ref().ok());
+        let (o, t) = match (serve, set) {
+            (true, Some(set)) => {
+                pending = false;
+                let before = (c.params().current_pi.kp, c.capture_status().state, c.test_running());
+                let r = m.measure(|| {
+                    serve_bulk(&mut c, op, set, &cfg);
+                    step(&mut c, black_box(&s))
+                });
+                let after = (c.params().current_pi.kp, c.capture_status().state, c.test_running());
+                accepted += u32::from(before != after || op == Bulk::CaptureConfigure);
+                r
+            }
+            _ => m.measure(|| step(&mut c, black_box(&s))),
+        };
+        out = black_box(o);
+        let tick = k + 1;
+        let kind = if tick % pos_div == 0 {
+            2
+        } else if tick % speed_div == 0 {
+            1
+        } else {
+            0
+        };
+        if running {
+            if let Some(w) = worst.get_mut(kind) {
+                *w = (*w).max(t);
+            }
+        }
+    }
+    (worst.map(|ticks| libm::round(m.insns(u64::from(ticks))) as u32), accepted)
+}
+
 #[firmware_tests::entry]
 fn main() -> ! {
     let m = Meter::calibrate();
@@ -314,6 +430,27 @@ fn main() -> ! {
         "Controller::step, speed + current loop, the same capture recording",
         &cap_spd,
     ));
+
+    // ---- the longest period with bulk requests ---------------------------
+    // Each request kind served wherever it lands, and as the firmware
+    // serves it (in current-only periods); [current, speed, position].
+    let ops = [(Bulk::ApplyParams, "apply_params"), (Bulk::CaptureConfigure, "capture_configure"), (Bulk::TestStart, "test_start")];
+    let mut any_period = [[0u32; 3]; 3];
+    let mut current_only = [[0u32; 3]; 3];
+    let mut accepted = [[0u32; 2]; 3];
+    for (i, (op, _)) in ops.iter().enumerate() {
+        let (w, a) = worst_with_bulk(&m, p, *op, true);
+        let (w2, a2) = worst_with_bulk(&m, p, *op, false);
+        if let (Some(x), Some(y), Some(acc)) = (any_period.get_mut(i), current_only.get_mut(i), accepted.get_mut(i)) {
+            *x = w;
+            *y = w2;
+            *acc = [a, a2];
+        }
+    }
+    let worst_of = |table: &[[u32; 3]; 3]| table.iter().flat_map(|r| r.iter()).copied().max().unwrap_or(0);
+    let worst_any = worst_of(&any_period);
+    let worst_fw = worst_of(&current_only);
+    let position_max = pos.insns(&m).2;
 
     // ---- observer ---------------------------------------------------------
     let model = &observer::model::MODEL;
@@ -608,6 +745,19 @@ fn main() -> ! {
         position_with_observer,
         position_increment_with_observer
     );
+    hprintln!("longest PWM period with a bulk request served before the step (instructions; current / speed / position periods):");
+    for (i, (_, name)) in ops.iter().enumerate() {
+        if let (Some(a), Some(f), Some(acc)) = (any_period.get(i), current_only.get(i), accepted.get(i)) {
+            hprintln!(
+                "  {:<18} wherever it lands: {:>5} {:>5} {:>5}   current-only periods (firmware): {:>5} {:>5} {:>5}   ({} / {} accepted)",
+                name, a[0], a[1], a[2], f[0], f[1], f[2], acc[0], acc[1]
+            );
+        }
+    }
+    hprintln!(
+        "worst PWM period: {} with requests wherever they land, {} as the firmware serves them (period 8500 cycles; 40 % = 3400); longest position period without a request {:.0}",
+        worst_any, worst_fw, position_max
+    );
     if faults_seen {
         hprintln!("warning: a fault latched during the closed-loop run: the step figures are not of a running drive");
     }
@@ -617,9 +767,25 @@ fn main() -> ! {
     hprintln!("JSON   \"icount_ticks_per_insn\": {},", m.ticks_per_insn);
     hprintln!("JSON   \"closed_loop_faults\": {},", faults_seen);
     hprintln!("JSON   \"observer_in_step\": {},", OBSERVER_IN_STEP);
+    hprintln!("JSON   \"worst_period\": {{");
+    hprintln!("JSON     \"note\": \"longest PWM period (step + a bulk request served before it) over the golden closed loop, one request every 7th period; firmware = served only before a current-only period, as the PWM interrupt does\",");
+    hprintln!("JSON     \"firmware\": {},", worst_fw);
+    hprintln!("JSON     \"requests_in_any_period\": {},", worst_any);
+    hprintln!("JSON     \"position_period_max_without_request\": {:.0},", position_max);
+    for (i, (_, name)) in ops.iter().enumerate() {
+        if let (Some(a), Some(f), Some(acc)) = (any_period.get(i), current_only.get(i), accepted.get(i)) {
+            hprintln!(
+                "JSON     \"{}\": {{\"any_period\": [{}, {}, {}], \"current_only\": [{}, {}, {}], \"accepted\": [{}, {}]}}{}",
+                name, a[0], a[1], a[2], f[0], f[1], f[2], acc[0], acc[1],
+                if i + 1 < ops.len() { "," } else { "" }
+            );
+        }
+    }
+    hprintln!("JSON   }},");
     hprintln!("JSON   \"per_period\": {{");
     hprintln!("JSON     \"current\": {:.1},", mean(&cur));
     hprintln!("JSON     \"speed\": {:.1},", mean(&spd));
+    hprintln!("JSON     \"current_capturing\": {:.1},", mean(&cap_cur));
     hprintln!("JSON     \"position\": {:.1},", mean(&pos));
     hprintln!(
         "JSON     \"position_with_observer\": {:.1},",

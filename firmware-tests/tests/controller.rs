@@ -255,7 +255,44 @@ fn closed_loop_move_on_rigid_plant() -> Outcome {
     Ok(())
 }
 
+/// A standing board condition (here: no hardware overcurrent break, as
+/// the ESC1 reports a failed comparator self-test) latches its named fault
+/// at once: Enable is refused, and ClearFaults too while the board says it
+/// stands; once the board reports it gone, a clear lets the drive enable.
+fn board_condition_refuses_enable_while_it_stands() -> Outcome {
+    let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
+    let nominal = SensorSample::idle(BUS_V);
+    c.report_board_condition(FaultSet::NO_HARDWARE_BREAK, true);
+    check!(c.faults().contains(FaultSet::NO_HARDWARE_BREAK), "{:?}", c.faults());
+    for _ in 0..100 {
+        check!(!c.step(&nominal).enable, "bridge on without the hardware break");
+    }
+    let r = c.command(Command::Enable);
+    check!(matches!(r, Err(CommandError::Faulted(f)) if f.contains(FaultSet::NO_HARDWARE_BREAK)), "{:?}", r);
+    let r = c.command(Command::ClearFaults);
+    check!(
+        matches!(r, Err(CommandError::CauseStillPresent(f)) if f.contains(FaultSet::NO_HARDWARE_BREAK)),
+        "{:?}",
+        r
+    );
+    c.step(&nominal);
+    check!(c.faults().contains(FaultSet::NO_HARDWARE_BREAK), "{:?}", c.faults());
+    // Only the board's own conditions go through this door.
+    c.report_board_condition(FaultSet::OVERCURRENT, true);
+    check!(!c.faults().contains(FaultSet::OVERCURRENT), "{:?}", c.faults());
+
+    c.report_board_condition(FaultSet::NO_HARDWARE_BREAK, false);
+    c.step(&nominal);
+    check!(c.faults().contains(FaultSet::NO_HARDWARE_BREAK), "cleared by itself: {:?}", c.faults());
+    let r = c.command(Command::ClearFaults);
+    check!(r.is_ok(), "{:?}", r);
+    check!(c.command(Command::Enable).is_ok());
+    check!(c.step(&nominal).enable);
+    Ok(())
+}
+
 test_main!(
+    board_condition_refuses_enable_while_it_stands,
     closed_loop_smoke_nominal_inputs,
     fault_latches_until_cleared,
     non_finite_sample_turns_bridge_off,

@@ -162,7 +162,7 @@ fn check_sequence(start_count: u16, periods: &[Period], all_finite: bool) -> Res
                 "period {k}: faults {faults:?} in {mode:?}"
             );
         }
-        if faults.difference(FaultSet::CONTROLLED_STOP).0 != 0 {
+        if !faults.difference(FaultSet::CONTROLLED_STOP).is_empty() {
             prop_assert!(!out.enable || short_circuit, "period {k}: bridge driving with {faults:?}");
         }
         let sample_finite = per.currents.iter().all(|x| x.is_finite())

@@ -41,6 +41,11 @@ impl ParamsCache {
         self.params.try_borrow().map_or(0, |p| p.stream.leg_index)
     }
 
+    /// Whether this drive terminates the CAN bus (`control.stream.can_termination`).
+    pub fn can_termination(&self) -> bool {
+        self.params.try_borrow().is_ok_and(|p| p.stream.can_termination)
+    }
+
     fn get(&self) -> ControlParams {
         self.params.try_borrow().map(|p| *p).unwrap_or(ControlParams::DEFAULT)
     }

@@ -18,8 +18,10 @@
 //! start happens in a sampled period when the capture waits for it (see
 //! `controller::scope`).
 
+mod config;
 mod store;
 
+pub use config::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
 pub use store::{CaptureStore, CAPTURE_STORE_CELLS};
 
 /// The lowest code: a value at or below −full scale, or NaN (the cheap
@@ -30,8 +32,7 @@ pub const NAN_CODE: i16 = i16::MIN;
 use core::sync::atomic::{AtomicI16, Ordering};
 
 use crate::params::ControlParams;
-use crate::protocol::{CaptureConfig, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
-use crate::protocol::Reason;
+use crate::reason::Reason;
 
 /// Largest code a finite value is stored as (the full scale).
 pub const FULL_SCALE_CODE: f32 = 32_767.0;

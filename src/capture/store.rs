@@ -12,7 +12,7 @@
 use core::sync::atomic::{AtomicI16, Ordering};
 
 use super::CaptureLayout;
-use crate::protocol::Reason;
+use crate::reason::Reason;
 
 
 /// Cells in the store: 4 signals × 1024 samples, 2 × 2048 or 1 × 4096.

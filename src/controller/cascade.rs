@@ -144,16 +144,22 @@ impl Controller {
         r
     }
 
-    /// One streamed period: the interpolated setpoints, or a controlled stop
-    /// once they stopped arriving.
+    /// One streamed period: the interpolated setpoints, or, once they
+    /// stopped arriving, a deceleration from where the reference got to (at
+    /// the newest setpoint's velocity) to rest, `stream_timeout` latched
+    /// only then. The reference never stops dead: a rod at speed would
+    /// overshoot and ring.
     #[inline(never)]
     fn stream_reference(&mut self) -> TrajectorySample {
-        if self.stream.since_ticks() > self.derived.stream_timeout_ticks {
-            let here = self.position_reference_m;
+        let a_stop = self.params.faults.stop_deceleration_m_s2;
+        let mut r = self.stream.advance(self.derived.position_period_s, a_stop);
+        if self.stream.lost_at_rest() {
             self.raise(FaultSet::STREAM_TIMEOUT);
-            return TrajectorySample { position_m: here, velocity_m_s: 0.0, acceleration_m_s2: 0.0 };
+            return r;
         }
-        let mut r = self.stream.advance(self.derived.position_period_s);
+        if self.stream.stopping() {
+            return r;
+        }
         let a_max = self.params.trajectory.max_acceleration_m_s2;
         if r.acceleration_m_s2.abs() > a_max {
             // Setpoints closer in time than their velocities allow: the

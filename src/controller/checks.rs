@@ -9,26 +9,16 @@ use crate::protection::FaultSet;
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
-const SPEED_RATE_CAUSES: FaultSet = FaultSet(
-    FaultSet::MOTOR_OVERTEMP.0 | FaultSet::SPEED_FOLLOWING.0 | FaultSet::OPEN_PHASE.0 | FaultSet::POWER_STAGE_OVERTEMP.0,
-);
+const SPEED_RATE_CAUSES: FaultSet = FaultSet::MOTOR_OVERTEMP.union(FaultSet::SPEED_FOLLOWING).union(FaultSet::OPEN_PHASE).union(FaultSet::POWER_STAGE_OVERTEMP);
 
 /// Conditions evaluated at the position-loop rate.
-const POSITION_RATE_CAUSES: FaultSet = FaultSet(FaultSet::POSITION_FOLLOWING.0 | FaultSet::STROKE_OVERTRAVEL.0);
+const POSITION_RATE_CAUSES: FaultSet = FaultSet::POSITION_FOLLOWING.union(FaultSet::STROKE_OVERTRAVEL);
 
 /// Bridge-off faults after which the low-side switches must not be closed:
 /// the current can no longer be measured or bounded (overcurrent, a sensor,
 /// a NaN sample, the hardware break already acted), or the core's timing is
 /// not trusted (overrun, watchdog), or nothing was ever set up (parameters).
-const NO_SHORT_CIRCUIT: FaultSet = FaultSet(
-    FaultSet::OVERCURRENT.0
-        | FaultSet::CURRENT_SENSOR.0
-        | FaultSet::NON_FINITE_INPUT.0
-        | FaultSet::BRIDGE_BREAK.0
-        | FaultSet::ISR_OVERRUN.0
-        | FaultSet::WATCHDOG_RESET.0
-        | FaultSet::INVALID_PARAMS.0,
-);
+const NO_SHORT_CIRCUIT: FaultSet = FaultSet::OVERCURRENT.union(FaultSet::CURRENT_SENSOR).union(FaultSet::NON_FINITE_INPUT).union(FaultSet::BRIDGE_BREAK).union(FaultSet::ISR_OVERRUN).union(FaultSet::WATCHDOG_RESET).union(FaultSet::INVALID_PARAMS);
 
 impl Controller {
     /// Latches `f`; new faults get their reaction.
@@ -41,7 +31,7 @@ impl Controller {
         self.faults.insert(new);
         // A fault ends a test and triggers a capture armed for it.
         self.finish_test(false);
-        self.capture.event(crate::protocol::CaptureTrigger::Fault);
+        self.capture.event(crate::capture::CaptureTrigger::Fault);
         self.refresh_hooks();
         self.forget_position(new);
         // A failed start-up step is not retried by a later `StartUp` step.
@@ -113,7 +103,7 @@ impl Controller {
     /// Checks one sample; returns the conditions present now.
     pub(super) fn check_inputs(&mut self, s: &SensorSample) -> FaultSet {
         let f = &self.params.faults;
-        let mut present = FaultSet(self.present.0 & (FaultSet::INVALID_PARAMS.0));
+        let mut present = self.present.intersection(FaultSet::INVALID_PARAMS.union(FaultSet::BOARD_CONDITIONS));
         let [a, b, c] = s.phase_current_a;
         // One compare checks every input (a branch each costs more at 20 kHz).
         use crate::math::finite_probe;

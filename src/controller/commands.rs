@@ -105,7 +105,7 @@ const HOME_POSITION_MAX_M: f32 = 100.0;
 
 /// Faults after which the electrical offset and the reference are not
 /// trusted any more (the counter may have lost or gained counts).
-const LOSES_POSITION: FaultSet = FaultSet(FaultSet::ENCODER_JUMP.0 | FaultSet::ENCODER_LOST.0 | FaultSet::WATCHDOG_RESET.0);
+const LOSES_POSITION: FaultSet = FaultSet::ENCODER_JUMP.union(FaultSet::ENCODER_LOST).union(FaultSet::WATCHDOG_RESET);
 
 impl Controller {
     /// Handles one command from thread context.
@@ -335,6 +335,11 @@ impl Controller {
         }
         if self.mode != Mode::Running {
             return Err(CommandError::NotRunning);
+        }
+        if self.stream.stopping() {
+            // The stream was lost and the rod is stopping: a late point
+            // does not restart it; the stop ends in `stream_timeout`.
+            return Err(CommandError::Faulted(FaultSet::STREAM_TIMEOUT));
         }
         if !self.stream.active() && self.move_in_progress() {
             return Err(CommandError::Busy);

@@ -59,10 +59,9 @@ struct Derived {
     /// `ω_e ψ / sqrt(R² + (ω_e L)²)`, stays inside `limits.current_max_a`.
     short_circuit_speed_max_rad_s: f32,
     speed_ticks_per_position_tick: u32,
-    /// Streamed setpoints: the longest interpolation interval and the
-    /// timeout, in position periods.
+    /// Streamed setpoints: the longest interpolation interval, in position
+    /// periods.
     stream_max_ticks: u32,
-    stream_timeout_ticks: u32,
 }
 
 impl Derived {
@@ -86,7 +85,6 @@ impl Derived {
             // Validated: a non-zero multiple of the speed divider.
             speed_ticks_per_position_tick: p.rates.position_loop_divider.checked_div(p.rates.speed_loop_divider).unwrap_or(1),
             stream_max_ticks: periods(p.stream.period_max_s, p.position_period_s()),
-            stream_timeout_ticks: periods(p.stream.timeout_s, p.position_period_s()),
         }
     }
 }
@@ -429,6 +427,30 @@ impl Controller {
     /// the last reset: the drive then waits for an explicit clear.
     pub fn report_watchdog_reset(&mut self) {
         self.raise(FaultSet::WATCHDOG_RESET);
+    }
+
+    /// The board reports a standing condition of its own (one of
+    /// [`FaultSet::BOARD_CONDITIONS`]: no hardware break, unsafe boot option
+    /// bytes, brake feedback disagreeing), or that it is gone. Latched as a
+    /// fault at once; while it stands, `ClearFaults` answers
+    /// `CauseStillPresent` and `Enable` is refused.
+    pub fn report_board_condition(&mut self, condition: FaultSet, present: bool) {
+        let condition = condition.intersection(FaultSet::BOARD_CONDITIONS);
+        if present {
+            self.present.insert(condition);
+            self.raise(condition);
+        } else {
+            self.present.remove(condition);
+        }
+    }
+
+    /// Whether the next [`Controller::step`] runs the current loop only (no
+    /// speed or position tick): the board serves bulk requests (parameter
+    /// sets, capture and test-signal requests) in such a period, so that
+    /// their copies never add to the longest one.
+    #[inline(always)]
+    pub fn next_period_is_current_only(&self) -> bool {
+        self.speed_countdown != 1
     }
 
     /// The host calls this once the board is up. Nothing moves unless the

@@ -14,7 +14,7 @@ use crate::telemetry::Mode;
 /// rest the brake takes the load and the bridge goes off (a stop category 1,
 /// where the others hold under control, category 2). Without a brake the
 /// drive keeps holding: that beats dropping the load.
-const SAFE_STOP_THEN_BRAKE: FaultSet = FaultSet(FaultSet::OPEN_PHASE.0 | FaultSet::HOMING_FAILED.0);
+const SAFE_STOP_THEN_BRAKE: FaultSet = FaultSet::OPEN_PHASE.union(FaultSet::HOMING_FAILED);
 
 impl Controller {
     /// True while the brake is (being) held closed or opening: a planned

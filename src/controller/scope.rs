@@ -13,10 +13,11 @@ use crate::io::SensorSample;
 use crate::lifecycle::Readiness;
 use crate::motion::speed_loop::friction_feedforward_n_m;
 use crate::motion::ScurveMove;
-use crate::protocol::{CaptureConfig, CaptureStatus, CaptureTrigger, ChirpTarget, Signal, TestSignal};
+use crate::capture::{CaptureConfig, CaptureStatus, CaptureTrigger, Signal};
+use crate::test_signals::{ChirpTarget, TestSignal};
 use crate::telemetry::Mode;
 use crate::test_signals::{Chirp, TestPhase, TestRun, TEST_DURATION_MAX_S};
-use crate::protocol::Reason;
+use crate::reason::Reason;
 
 impl Controller {
     // ---- capture ----

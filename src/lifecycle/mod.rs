@@ -19,26 +19,20 @@ pub use homing::{Homing, HomingInput, HomingOutput};
 /// `COMMUTATED`, moves and streams need `HOMED` too.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
-pub struct Readiness(pub u8);
+pub struct Readiness(u8);
+
+bitflags::bitflags! {
+    impl Readiness: u8 {
+        const CURRENTS_CALIBRATED = 1 << 0;
+        const COMMUTATED = 1 << 1;
+        const HOMED = 1 << 2;
+    }
+}
 
 impl Readiness {
-    pub const NONE: Self = Self(0);
-    pub const CURRENTS_CALIBRATED: Self = Self(1 << 0);
-    pub const COMMUTATED: Self = Self(1 << 1);
-    pub const HOMED: Self = Self(1 << 2);
-    pub const ALL: Self = Self(0b111);
-
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-
-    pub fn insert(&mut self, other: Self) {
-        self.0 |= other.0;
-    }
-
-    pub fn remove(&mut self, other: Self) {
-        self.0 &= !other.0;
-    }
+    pub const NONE: Self = Self::empty();
+    /// Every start-up step done: the drive may run.
+    pub const ALL: Self = Self::all();
 }
 
 #[cfg(feature = "defmt")]

@@ -13,7 +13,7 @@
 use core::mem::offset_of;
 
 use super::{ControlParams, HomingMethod};
-use crate::protocol::messages::{Value, ValueKind};
+use super::value::{Value, ValueKind};
 
 /// One parameter: where it is in `ControlParams` and its type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -167,6 +167,7 @@ leaves! {
     stream.period_max_s,
     stream.timeout_s,
     stream.leg_index,
+    stream.can_termination,
     thermal.continuous_current_a,
     thermal.time_constant_s,
     thermal.foldback_start,
@@ -261,6 +262,26 @@ const fn homing_method(index: u8) -> Option<HomingMethod> {
 /// Leaf `index`, if there is one.
 pub fn leaf(index: usize) -> Option<Leaf> {
     Some(Leaf { offset: *OFFSETS.get(index)?, kind: *KINDS.get(index)? })
+}
+
+/// Whether leaf `index` holds the same value in `a` and `b` (as `get`'s
+/// values compare: floats by value), read in place: no `Value` built, for
+/// the PWM interrupt's parameter apply. An unknown index counts as same.
+#[inline(always)]
+pub fn same(a: &ControlParams, b: &ControlParams, index: usize) -> bool {
+    let Some(l) = leaf(index) else { return true };
+    let pa = (a as *const ControlParams).cast::<u8>().wrapping_add(usize::from(l.offset));
+    let pb = (b as *const ControlParams).cast::<u8>().wrapping_add(usize::from(l.offset));
+    // SAFETY: as in `get`: both point to an initialised, aligned value of
+    // the leaf's own type inside `*a` and `*b`.
+    unsafe {
+        match l.kind {
+            ValueKind::F32 => *pa.cast::<f32>() == *pb.cast::<f32>(),
+            ValueKind::U32 | ValueKind::I32 => *pa.cast::<u32>() == *pb.cast::<u32>(),
+            ValueKind::Bool => *pa.cast::<bool>() == *pb.cast::<bool>(),
+            ValueKind::Variant => *pa.cast::<HomingMethod>() == *pb.cast::<HomingMethod>(),
+        }
+    }
 }
 
 /// The value of leaf `index` of `p`.

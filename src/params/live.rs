@@ -86,6 +86,29 @@ const LIVE_LEAVES: u128 = {
 };
 const _: () = assert!(LEAF_COUNT <= 128);
 
+/// How many leaves change with the bridge off only.
+const STRUCTURAL_COUNT: usize = LEAF_COUNT - LIVE_LEAVES.count_ones() as usize;
+
+/// Their indices, in leaf order: `bridge_off_change` walks this list instead
+/// of testing a 128-bit mask per leaf (the PWM interrupt runs it when it
+/// applies a set; the mask walk cost ≈ 7 000 instructions, longer than a
+/// PWM period).
+// Evaluated when the image is built: an index out of range there fails the
+// build; nothing here runs on the drive.
+#[allow(clippy::indexing_slicing)]
+const STRUCTURAL: [u8; STRUCTURAL_COUNT] = {
+    let mut list = [0u8; STRUCTURAL_COUNT];
+    let (mut i, mut n) = (0, 0);
+    while i < LEAF_COUNT {
+        if LIVE_LEAVES & (1 << i) == 0 {
+            list[n] = i as u8;
+            n += 1;
+        }
+        i += 1;
+    }
+    list
+};
+
 impl ControlParams {
     /// True if the parameter at `path` may change with the bridge on.
     pub fn is_live_path(path: &str) -> bool {
@@ -97,8 +120,6 @@ impl ControlParams {
     /// every difference is live. The same split as
     /// [`ControlParams::is_live_path`] (a test walks every leaf).
     pub fn bridge_off_change(&self, new: &Self) -> Option<u16> {
-        (0..LEAF_COUNT)
-            .find(|&i| LIVE_LEAVES.checked_shr(i as u32).unwrap_or(0) & 1 == 0 && leaves::get(self, i) != leaves::get(new, i))
-            .and_then(|i| u16::try_from(i).ok())
+        STRUCTURAL.iter().find(|&&i| !leaves::same(self, new, usize::from(i))).map(|&i| u16::from(i))
     }
 }

@@ -12,10 +12,12 @@ pub mod leaves;
 mod lifecycle;
 mod live;
 pub mod record;
-mod stream;
+pub mod stream;
 mod validate;
+pub mod value;
 pub use lifecycle::*;
-pub use stream::StreamParams;
+pub use stream::{StreamParams, LEGS};
+pub use value::{Value, ValueKind};
 pub use validate::{ParamError, ValidatedParams};
 
 use serde::{Deserialize, Serialize};
@@ -551,7 +553,7 @@ impl ControlParams {
         // above the dead-time voltage error at standstill current; netted
         // over 20 ms, the dead time's wobble and a platform leg's reversals
         // cancel (10 ms tripped a streamed platform leg falsely).
-        stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05, leg_index: 0 },
+        stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05, leg_index: 0, can_termination: false },
         power_stage: PowerStageParams {
             temperature_foldback_c: 80.0,
             temperature_trip_c: 100.0,

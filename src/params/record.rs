@@ -22,8 +22,16 @@
 
 use super::leaves::{self, LEAF_COUNT};
 use super::{ControlParams, ParamError, ValidatedParams};
-use crate::protocol::frame::CRC;
-use crate::protocol::PARAMS_SCHEMA_HASH;
+use crc::{Crc, NoTable, CRC_32_ISO_HDLC};
+use postcard_schema::key::Key;
+
+/// Hash of the parameter set's layout: a record with another is never
+/// loaded.
+pub const PARAMS_SCHEMA_HASH: [u8; 8] = Key::for_path::<ControlParams>("cylinder-servo/params").to_bytes();
+
+/// The record's CRC-32 (ISO-HDLC), bit by bit: no 1 KiB table in flash for
+/// a check that runs once per load or save.
+const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 
 pub const MAGIC: [u8; 4] = *b"CSP2";
 /// Largest record; `ControlParams` encodes to well under this (a test

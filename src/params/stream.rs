@@ -2,6 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Drives on one platform's setpoint bus: the legs of the Stewart platform,
+/// each reading its own slot of the setpoint frame.
+pub const LEGS: usize = 6;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[derive(Serialize, Deserialize, postcard_schema::Schema, miniconf::Tree)]
 #[serde(deny_unknown_fields)]
@@ -10,10 +14,21 @@ pub struct StreamParams {
     /// first setpoint is reached over this, and a measured interval never
     /// exceeds it.
     pub period_max_s: f32,
-    /// No setpoint for this long ends the stream with a controlled stop
-    /// (`stream_timeout`): five periods of the slowest rate.
+    /// The longest gap after which a setpoint still joins the stream: a
+    /// later one is refused. The stream itself is lost sooner, one expected
+    /// interval after its newest setpoint was reached; it then decelerates
+    /// to rest and latches `stream_timeout`.
     pub timeout_s: f32,
     /// This drive's slot (leg 0…5) in the platform's CAN FD setpoint frame
     /// (`protocol::can`): each of the six drives on the bus reads its own.
     pub leg_index: u32,
+    /// Switch this drive's CAN bus terminator in (the board's 120 Ω across
+    /// CANH–CANL): true on the two drives at the physical ends of the bus,
+    /// false on the others (ISO 11898-2: 120 Ω at each end, 60 Ω measured
+    /// between CANH and CANL with the bus unpowered). A board that cannot
+    /// switch a terminator refuses `true` (at build time for the image's
+    /// set, at load for a saved one), naming this field. Absent from a
+    /// TOML file: false.
+    #[serde(default)]
+    pub can_termination: bool,
 }

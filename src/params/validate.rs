@@ -3,7 +3,7 @@
 
 use super::ControlParams;
 use crate::leaf;
-use crate::protocol::Reason;
+use crate::reason::Reason;
 
 /// A parameter that cannot be used: its leaf index (`params::leaves`;
 /// [`ParamError::field`] is its path in the TOML file) and why.
@@ -423,7 +423,7 @@ impl ControlParams {
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
             return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
         }
-        if self.stream.leg_index >= crate::protocol::can::LEGS as u32 {
+        if self.stream.leg_index >= super::stream::LEGS as u32 {
             return Err(ParamError { leaf: leaf!(stream.leg_index), reason: Reason::NoSuchLegSlot });
         }
         Ok(())

@@ -2,85 +2,121 @@
 //! an explicit clear command finds its cause gone (ODrive/MCSDK habit: the
 //! operator acknowledges, the drive never re-arms by itself).
 
-/// A set of fault bits.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// A set of fault bits (`bitflags`: the set operations; one list below gives
+/// each bit, its constant and its short name).
+#[derive(Clone, Copy, Default, PartialEq, Eq, Hash)]
 #[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 #[serde(transparent)]
-pub struct FaultSet(pub u32);
+pub struct FaultSet(u32);
 
-impl FaultSet {
-    pub const NONE: Self = Self(0);
+/// Declares every fault once: its bit, its constant (with the doc) and the
+/// short name logs and reports use.
+macro_rules! faults {
+    ($($(#[doc = $doc:literal])* $bit:ident = $n:literal => $name:ident,)*) => {
+        bitflags::bitflags! {
+            impl FaultSet: u32 {
+                $($(#[doc = $doc])* const $bit = 1 << $n;)*
+            }
+        }
+
+        impl FaultSet {
+            /// Every fault, in bit order, with a short name for logs and reports.
+            pub const ALL: [(Self, &'static str); [$($n),*].len()] = [$((Self::$bit, stringify!($name)),)*];
+        }
+    };
+}
+
+faults! {
     /// Instantaneous |i_phase| above `faults.overcurrent_trip_a`.
-    pub const OVERCURRENT: Self = Self(1 << 0);
-    pub const BUS_OVERVOLTAGE: Self = Self(1 << 1);
+    OVERCURRENT = 0 => overcurrent,
+    BUS_OVERVOLTAGE = 1 => bus_overvoltage,
     /// Only while the bridge is enabled: a board powered from USB with the
     /// bus off must still be configurable.
-    pub const BUS_UNDERVOLTAGE: Self = Self(1 << 2);
+    BUS_UNDERVOLTAGE = 2 => bus_undervoltage,
     /// The encoder moved further in one period than the motor can.
-    pub const ENCODER_JUMP: Self = Self(1 << 3);
+    ENCODER_JUMP = 3 => encoder_jump,
     /// |position command − motor-side position| above the threshold.
-    pub const POSITION_FOLLOWING: Self = Self(1 << 4);
+    POSITION_FOLLOWING = 4 => position_following,
     /// Motor-side position beyond the stroke plus the allowed overtravel.
-    pub const STROKE_OVERTRAVEL: Self = Self(1 << 5);
+    STROKE_OVERTRAVEL = 5 => stroke_overtravel,
     /// NaN or infinity in a sensor sample.
-    pub const NON_FINITE_INPUT: Self = Self(1 << 6);
+    NON_FINITE_INPUT = 6 => non_finite_input,
     /// The parameter set failed validation; the bridge never enables.
-    pub const INVALID_PARAMS: Self = Self(1 << 7);
+    INVALID_PARAMS = 7 => invalid_params,
     /// A new sample arrived before the previous step finished (board-reported).
-    pub const ISR_OVERRUN: Self = Self(1 << 8);
+    ISR_OVERRUN = 8 => isr_overrun,
     /// The I²t winding model passed its trip level.
-    pub const MOTOR_OVERTEMP: Self = Self(1 << 9);
+    MOTOR_OVERTEMP = 9 => motor_overtemp,
     /// |ω_ref − ω| stayed above the threshold.
-    pub const SPEED_FOLLOWING: Self = Self(1 << 10);
+    SPEED_FOLLOWING = 10 => speed_following,
     /// No encoder count while commanded to turn: lost signal or stalled rotor.
-    pub const ENCODER_LOST: Self = Self(1 << 11);
+    ENCODER_LOST = 11 => encoder_lost,
     /// The motor would not stop inside the stroke (soft limit).
-    pub const SOFT_LIMIT: Self = Self(1 << 12);
+    SOFT_LIMIT = 12 => soft_limit,
     /// The error observer's shift was non-finite or beyond its bound.
-    pub const OBSERVER_OUT_OF_BOUNDS: Self = Self(1 << 13);
+    OBSERVER_OUT_OF_BOUNDS = 13 => observer_out_of_bounds,
     /// The last reset came from the independent watchdog (board-reported).
-    pub const WATCHDOG_RESET: Self = Self(1 << 14);
+    WATCHDOG_RESET = 14 => watchdog_reset,
     /// The three phase currents do not sum to zero: a stuck, offset or
     /// open-circuit current sensor (a star-connected motor has no path for a
     /// common-mode current).
-    pub const CURRENT_SENSOR: Self = Self(1 << 15);
+    CURRENT_SENSOR = 15 => current_sensor,
     /// One phase carries no current while the reference needs it there: a
     /// broken motor lead or a dead inverter leg. The phase currents still
     /// sum to zero (the other two carry ±the same), so `CURRENT_SENSOR`
     /// cannot see it.
-    pub const OPEN_PHASE: Self = Self(1 << 16);
+    OPEN_PHASE = 16 => open_phase,
     /// The board's comparator break switched the outputs off in hardware
     /// (board-reported): the core must not carry on as if it were driving.
-    pub const BRIDGE_BREAK: Self = Self(1 << 17);
+    BRIDGE_BREAK = 17 => bridge_break,
     /// A controlled stop could not hold the motion: the rod left the stop's
     /// path by more than `faults.stop_following_error_m` while the motor's
     /// present current limit gives less torque than the brake holds.
     /// Escalates to the bridge off with the holding brake engaged.
-    pub const STOP_FAILED: Self = Self(1 << 18);
+    STOP_FAILED = 18 => stop_failed,
     /// Current-offset calibration: an offset or the noise beyond its bound,
     /// or the bus moved during the average (a sagging supply).
-    pub const CALIBRATION_FAILED: Self = Self(1 << 19);
+    CALIBRATION_FAILED = 19 => calibration_failed,
     /// Commutation: the brake-held rotor showed no twist under the test
     /// torque (encoder unplugged, or no signal).
-    pub const ENCODER_NO_SIGNAL: Self = Self(1 << 20);
+    ENCODER_NO_SIGNAL = 20 => encoder_no_signal,
     /// The brake let the shaft turn further than its disc can twist: it
     /// slipped under the commutation test torque or the load alone.
-    pub const BRAKE_SLIP: Self = Self(1 << 21);
+    BRAKE_SLIP = 21 => brake_slip,
     /// The check rotation went the other way: encoder direction or phase
     /// order reversed.
-    pub const WRONG_DIRECTION: Self = Self(1 << 22);
+    WRONG_DIRECTION = 22 => wrong_direction,
     /// The check rotation's size disagrees with `motor.pole_pairs`.
-    pub const WRONG_POLE_PAIRS: Self = Self(1 << 23);
+    WRONG_POLE_PAIRS = 23 => wrong_pole_pairs,
     /// The rotor did not follow the check rotation: blocked.
-    pub const ROTOR_BLOCKED: Self = Self(1 << 24);
+    ROTOR_BLOCKED = 24 => rotor_blocked,
     /// Homing met neither the stop nor the switch within its travel.
-    pub const HOMING_FAILED: Self = Self(1 << 25);
+    HOMING_FAILED = 25 => homing_failed,
     /// A start-up step ran past its time bound, or its rotor never settled.
-    pub const LIFECYCLE_TIMEOUT: Self = Self(1 << 26);
+    LIFECYCLE_TIMEOUT = 26 => lifecycle_timeout,
     /// Power-stage temperature at `power_stage.temperature_trip_c`.
-    pub const POWER_STAGE_OVERTEMP: Self = Self(1 << 27);
+    POWER_STAGE_OVERTEMP = 27 => power_stage_overtemp,
     /// A setpoint stream stopped arriving for `stream.timeout_s`.
-    pub const STREAM_TIMEOUT: Self = Self(1 << 28);
+    STREAM_TIMEOUT = 28 => stream_timeout,
+    /// The board's hardware overcurrent break is not armed: its start-up
+    /// self-test found a comparator high with the bridge off (board-reported,
+    /// stands until reset). The bridge never enables without it.
+    NO_HARDWARE_BREAK = 29 => no_hardware_break,
+    /// The option bytes let a pin select the boot mode, and on this board
+    /// that pin carries a load (the ESC1's PB8/BOOT0 is the brake output):
+    /// a reset could start the ROM bootloader instead of the drive
+    /// (board-reported, stands until the option bytes are set and the chip
+    /// reset). The bridge never enables.
+    BOOT_OPTION_BYTES = 30 => boot_option_bytes,
+    /// The holding brake's state feedback disagrees with what the drive
+    /// commands, for longer than the brake takes to move (board-reported):
+    /// a brake that will not open, or one that will not hold. Controlled
+    /// stop: the bridge holds the load, since the brake may not.
+    BRAKE_FEEDBACK = 31 => brake_feedback,
+}
+
+impl FaultSet {
+    pub const NONE: Self = Self::empty();
 
     /// Faults whose reaction is a controlled stop, not switching off. The
     /// motor, its sensors and the bridge still work (with an open phase, two
@@ -89,60 +125,30 @@ impl FaultSet {
     /// screw (η ≈ 0.89 backwards), so the drive decelerates at
     /// `faults.stop_deceleration_m_s2` and holds. All other faults mean the
     /// drive cannot trust its measurements or its power stage: bridge off.
-    pub const CONTROLLED_STOP: Self = Self(
-        Self::POSITION_FOLLOWING.0
-            | Self::SPEED_FOLLOWING.0
-            | Self::SOFT_LIMIT.0
-            | Self::OBSERVER_OUT_OF_BOUNDS.0
-            | Self::OPEN_PHASE.0
-            | Self::HOMING_FAILED.0
-            | Self::STREAM_TIMEOUT.0,
-    );
+    pub const CONTROLLED_STOP: Self = Self::POSITION_FOLLOWING
+            .union(Self::SPEED_FOLLOWING)
+            .union(Self::SOFT_LIMIT)
+            .union(Self::OBSERVER_OUT_OF_BOUNDS)
+            .union(Self::OPEN_PHASE)
+            .union(Self::HOMING_FAILED)
+            .union(Self::STREAM_TIMEOUT)
+            .union(Self::BRAKE_FEEDBACK);
 
     /// Faults a start-up step raises: the step is refused for good (until
     /// cleared), never enabled around.
-    pub const LIFECYCLE: Self = Self(
-        Self::CALIBRATION_FAILED.0
-            | Self::ENCODER_NO_SIGNAL.0
-            | Self::BRAKE_SLIP.0
-            | Self::WRONG_DIRECTION.0
-            | Self::WRONG_POLE_PAIRS.0
-            | Self::ROTOR_BLOCKED.0
-            | Self::HOMING_FAILED.0
-            | Self::LIFECYCLE_TIMEOUT.0,
-    );
+    pub const LIFECYCLE: Self = Self::CALIBRATION_FAILED
+            .union(Self::ENCODER_NO_SIGNAL)
+            .union(Self::BRAKE_SLIP)
+            .union(Self::WRONG_DIRECTION)
+            .union(Self::WRONG_POLE_PAIRS)
+            .union(Self::ROTOR_BLOCKED)
+            .union(Self::HOMING_FAILED)
+            .union(Self::LIFECYCLE_TIMEOUT);
 
-    pub const fn is_empty(self) -> bool {
-        self.0 == 0
-    }
-
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-
-    pub fn insert(&mut self, other: Self) {
-        self.0 |= other.0;
-    }
-
-    pub const fn union(self, other: Self) -> Self {
-        Self(self.0 | other.0)
-    }
-
-    pub const fn bits(self) -> u32 {
-        self.0
-    }
-
-    pub const fn intersects(self, other: Self) -> bool {
-        self.0 & other.0 != 0
-    }
-
-    pub const fn intersection(self, other: Self) -> Self {
-        Self(self.0 & other.0)
-    }
-
-    pub const fn difference(self, other: Self) -> Self {
-        Self(self.0 & !other.0)
-    }
+    /// Conditions the board reports that stand until the board itself says
+    /// they are gone ([`crate::Controller::report_board_condition`]): a
+    /// clear does not remove them while they stand.
+    pub const BOARD_CONDITIONS: Self = Self::NO_HARDWARE_BREAK.union(Self::BOOT_OPTION_BYTES).union(Self::BRAKE_FEEDBACK);
 
     /// The short names of the faults in this set, in bit order.
     pub fn names(self) -> impl Iterator<Item = &'static str> {
@@ -155,113 +161,44 @@ impl FaultSet {
     }
 }
 
-/// One list gives both [`FaultSet::ALL`] (names as strings, for the host's
-/// reports) and, with the `defmt` feature, `FaultName`: the same names as a
-/// C-like enum, in the same (bit) order. defmt interns an enum's variant
-/// names in its `.defmt` section, which is not flashed, and sends only the
-/// index; the strings of `ALL` would take ≈ 650 bytes of flash (text and
-/// pointer table) in the firmware image.
-macro_rules! fault_names {
-    ($($bit:ident => $name:ident,)*) => {
-        impl FaultSet {
-            /// Every fault, with a short name for logs and reports.
-            pub const ALL: [(Self, &'static str); 29] = [$((Self::$bit, stringify!($name)),)*];
-        }
-
-        /// Only its defmt format string is used (see [`FaultIndex`]).
-        #[cfg(feature = "defmt")]
-        #[allow(non_camel_case_types, dead_code)]
-        #[derive(Clone, Copy, defmt::Format)]
-        enum FaultName {
-            $($name,)*
-        }
-    };
-}
-
-fault_names! {
-    OVERCURRENT => overcurrent,
-    BUS_OVERVOLTAGE => bus_overvoltage,
-    BUS_UNDERVOLTAGE => bus_undervoltage,
-    ENCODER_JUMP => encoder_jump,
-    POSITION_FOLLOWING => position_following,
-    STROKE_OVERTRAVEL => stroke_overtravel,
-    NON_FINITE_INPUT => non_finite_input,
-    INVALID_PARAMS => invalid_params,
-    ISR_OVERRUN => isr_overrun,
-    MOTOR_OVERTEMP => motor_overtemp,
-    SPEED_FOLLOWING => speed_following,
-    ENCODER_LOST => encoder_lost,
-    SOFT_LIMIT => soft_limit,
-    OBSERVER_OUT_OF_BOUNDS => observer_out_of_bounds,
-    WATCHDOG_RESET => watchdog_reset,
-    CURRENT_SENSOR => current_sensor,
-    OPEN_PHASE => open_phase,
-    BRIDGE_BREAK => bridge_break,
-    STOP_FAILED => stop_failed,
-    CALIBRATION_FAILED => calibration_failed,
-    ENCODER_NO_SIGNAL => encoder_no_signal,
-    BRAKE_SLIP => brake_slip,
-    WRONG_DIRECTION => wrong_direction,
-    WRONG_POLE_PAIRS => wrong_pole_pairs,
-    ROTOR_BLOCKED => rotor_blocked,
-    HOMING_FAILED => homing_failed,
-    LIFECYCLE_TIMEOUT => lifecycle_timeout,
-    POWER_STAGE_OVERTEMP => power_stage_overtemp,
-    STREAM_TIMEOUT => stream_timeout,
-}
-
-// `ALL` (and so `FaultName`, whose variant i names bit i) is in bit order.
+// `ALL` lists the faults in bit order (the logs' and reports' names by index).
 const _: () = {
     let mut rest: &[(FaultSet, &str)] = &FaultSet::ALL;
     let mut bit = 1u32;
     while let [(fault, _), tail @ ..] = rest {
-        assert!(fault.0 == bit, "FaultSet::ALL must list the faults in bit order");
+        assert!(fault.bits() == bit, "FaultSet::ALL must list the faults in bit order");
         bit = bit.wrapping_shl(1);
         rest = tail;
     }
 };
+
+impl core::fmt::Debug for FaultSet {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("FaultSet(")?;
+        if self.is_empty() {
+            f.write_str("none")?;
+        }
+        for (i, name) in self.names().enumerate() {
+            if i > 0 {
+                f.write_str("|")?;
+            }
+            f.write_str(name)?;
+        }
+        f.write_str(")")
+    }
+}
 
 #[cfg(feature = "defmt")]
 impl defmt::Format for FaultSet {
     fn format(&self, f: defmt::Formatter) {
         if self.is_empty() {
             defmt::write!(f, "none");
-            return;
         }
-        let mut first = true;
-        let mut bit = 1u32;
-        for index in 0..FaultSet::ALL.len() as u8 {
-            if self.0 & bit != 0 {
-                if !first {
-                    defmt::write!(f, "|");
-                }
-                first = false;
-                defmt::write!(f, "{}", FaultIndex(index));
+        for (i, name) in self.names().enumerate() {
+            if i > 0 {
+                defmt::write!(f, "|");
             }
-            bit = bit.wrapping_shl(1);
+            defmt::write!(f, "{=str}", name);
         }
-    }
-}
-
-/// Bit `i` of a [`FaultSet`], logged as `FaultName`'s variant `i` (the
-/// same bytes as the derive writes for that variant, without the derive's
-/// table of pointers to one constant per variant).
-#[cfg(feature = "defmt")]
-struct FaultIndex(u8);
-
-#[cfg(feature = "defmt")]
-impl defmt::Format for FaultIndex {
-    /// The log macros take the two methods below; a direct caller of
-    /// `format` gets the bit's index (never a panic in the core).
-    fn format(&self, f: defmt::Formatter) {
-        defmt::write!(f, "fault bit {=u8}", self.0)
-    }
-
-    fn _format_tag() -> defmt::Str {
-        <FaultName as defmt::Format>::_format_tag()
-    }
-
-    fn _format_data(&self) {
-        defmt::export::u8(&self.0);
     }
 }

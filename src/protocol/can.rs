@@ -38,7 +38,7 @@ pub const SETPOINT_ID: u16 = 0x100;
 /// [`SETPOINT_ID`], so it wins arbitration.
 pub const STOP_ID: u16 = 0x080;
 /// Legs of the platform, i.e. slots per setpoint frame.
-pub const LEGS: usize = 6;
+pub use crate::params::LEGS;
 /// Data bytes of a setpoint frame (CAN FD, DLC 15).
 pub const SETPOINT_LEN: usize = 64;
 /// Data bytes of a stop frame.

@@ -9,8 +9,10 @@
 
 use heapless::Vec;
 
-use super::messages::{CaptureRequest, CaptureStatus, TestSignal, Text, CAPTURE_CHUNK_MAX};
-use super::reason::Reason;
+use super::messages::{Text, CAPTURE_CHUNK_MAX};
+use crate::capture::{CaptureRequest, CaptureStatus};
+use crate::test_signals::TestSignal;
+use crate::reason::Reason;
 use crate::controller::{ApplyError, Command, CommandError, CommandOutcome};
 use crate::params::{ControlParams, ValidatedParams};
 use crate::telemetry::Telemetry;
@@ -104,8 +106,10 @@ pub trait ParamStore {
 pub mod on_controller {
     use super::CaptureReply;
     use crate::controller::Controller;
-    use crate::protocol::messages::{CaptureRequest, TestSignal, CAPTURE_CHUNK_MAX};
-    use crate::protocol::Reason;
+    use crate::capture::CaptureRequest;
+    use crate::protocol::messages::CAPTURE_CHUNK_MAX;
+    use crate::test_signals::TestSignal;
+    use crate::reason::Reason;
 
     pub fn capture(c: &mut Controller, request: &CaptureRequest) -> Result<CaptureReply, Reason> {
         match request {

@@ -20,7 +20,7 @@ pub const FRAME_MAX: usize = 320;
 /// Bit by bit, without the crate's 1 KiB lookup table: frames are at most
 /// 320 bytes and checked in thread mode, where ≈ 40 cycles a byte do not
 /// matter, and the table was 1.6 % of the image's flash. The same CRC.
-pub(crate) const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
+const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 const CRC_BYTES: usize = 4;
 
 /// Encodes `msg` into `buf` as one frame ending with its zero delimiter;

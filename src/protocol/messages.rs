@@ -11,7 +11,10 @@ use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
 use crate::controller::{CommandError, CommandOutcome};
-use super::reason::Reason;
+use crate::capture::{CaptureRequest, CaptureStatus};
+use crate::params::value::{Value, ValueKind};
+use crate::reason::Reason;
+use crate::test_signals::TestSignal;
 use crate::telemetry::Mode;
 
 /// Longest dotted parameter path
@@ -21,8 +24,6 @@ pub const PATH_MAX: usize = 64;
 /// Longest free text in a reply (a version string, a storage error's
 /// reason; refusals carry a [`Reason`] code).
 pub const TEXT_MAX: usize = 96;
-/// Signals one capture records at most.
-pub const CAPTURE_SIGNALS_MAX: usize = 4;
 /// Samples per `CaptureData` reply (per signal row-major chunk), chosen so a
 /// reply stays under [`super::FRAME_MAX`] bytes.
 pub const CAPTURE_CHUNK_MAX: usize = 64;
@@ -117,102 +118,6 @@ pub struct StreamPoint {
     pub force_n: Option<f32>,
 }
 
-/// A parameter's value, typed as the parameter is.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
-pub enum Value {
-    F32(f32),
-    U32(u32),
-    I32(i32),
-    Bool(bool),
-    /// An enum parameter by variant index (e.g. `homing.method`: 0 hard stop,
-    /// 1 switch).
-    Variant(u8),
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
-pub enum ValueKind {
-    F32,
-    U32,
-    I32,
-    Bool,
-    Variant,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
-pub enum CaptureRequest {
-    /// Signals, decimation (1 = every PWM period), samples per signal,
-    /// pre-trigger samples, trigger. Arms the capture.
-    Configure(CaptureConfig),
-    /// Trigger now (the `Command` trigger).
-    Trigger,
-    Status,
-    /// `count` samples of signal `signal` from sample `start` (0 = oldest).
-    Read { signal: u8, start: u16, count: u8 },
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
-pub struct CaptureConfig {
-    pub signals: Vec<Signal, CAPTURE_SIGNALS_MAX>,
-    pub decimation: u16,
-    pub samples: u16,
-    pub pre_trigger: u16,
-    pub trigger: CaptureTrigger,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
-pub enum CaptureTrigger {
-    /// When a test signal starts.
-    TestStart,
-    /// When a fault latches.
-    Fault,
-    /// On `CaptureRequest::Trigger` (or at once if armed with it).
-    Command,
-}
-
-/// What a capture can record; each is sampled in the PWM interrupt.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
-pub enum Signal {
-    CurrentD,
-    CurrentQ,
-    CurrentQReference,
-    CurrentDReference,
-    VoltageD,
-    VoltageQ,
-    Speed,
-    SpeedReference,
-    MotorPosition,
-    PositionCommand,
-    PositionReference,
-    BusVoltage,
-    PhaseCurrentA,
-    PhaseCurrentB,
-    PhaseCurrentC,
-    ElectricalAngle,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
-pub enum TestSignal {
-    /// A d- or q-axis current step held for `duration_s`, speed and position
-    /// loops suspended (bridge on, brake closed or load blocked by the user).
-    CurrentStep { axis_q: bool, amplitude_a: f32, duration_s: f32 },
-    /// A speed-reference step about the present speed, position loop suspended.
-    SpeedStep { amplitude_rad_s: f32, duration_s: f32 },
-    /// A position-reference step (no trajectory), the cascade closed.
-    PositionStep { distance_m: f32, duration_s: f32 },
-    /// A logarithmic sine sweep added to the reference of `target`.
-    Chirp { target: ChirpTarget, amplitude: f32, start_hz: f32, end_hz: f32, duration_s: f32 },
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
-pub enum ChirpTarget {
-    /// q-current reference, amps.
-    Current,
-    /// Speed reference, rad/s.
-    Speed,
-    /// Position reference, metres.
-    Position,
-}
-
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
 pub enum Reply {
     Info(Info),
@@ -269,25 +174,6 @@ impl From<CommandOutcome> for CommandReport {
             CommandOutcome::ClampedToStroke { position_m } => Self::ClampedToStroke { position_m },
         }
     }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
-pub struct CaptureStatus {
-    pub state: CaptureState,
-    pub signals: u8,
-    pub samples: u16,
-    /// Seconds between samples (decimation / PWM rate).
-    pub sample_period_s: f32,
-    /// Index of the trigger sample within the record.
-    pub trigger_index: u16,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
-pub enum CaptureState {
-    Idle,
-    Armed,
-    Triggered,
-    Done,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]

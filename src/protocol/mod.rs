@@ -20,13 +20,17 @@ pub mod drive;
 pub mod frame;
 pub mod messages;
 pub mod params;
-pub mod reason;
 pub mod server;
 
 pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
 pub use drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 pub use messages::*;
-pub use reason::Reason;
+// The core's words the messages carry, re-exported for the protocol's users.
+pub use crate::capture::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
+pub use crate::params::record::PARAMS_SCHEMA_HASH;
+pub use crate::params::value::{Value, ValueKind};
+pub use crate::reason::Reason;
+pub use crate::test_signals::{ChirpTarget, TestSignal};
 pub use server::{Identity, Server};
 /// The fixed-capacity types in the messages, at the version they use.
 pub use heapless;
@@ -40,7 +44,3 @@ pub const PROTOCOL_VERSION: u16 = 1;
 /// Hash of everything both ends must agree on.
 pub const SCHEMA_HASH: [u8; 8] =
     Key::for_path::<(RequestFrame, DriveFrame, ControlParams)>("cylinder-servo/protocol").to_bytes();
-
-/// Hash of the parameter set's layout: a flash record with another is
-/// never loaded.
-pub const PARAMS_SCHEMA_HASH: [u8; 8] = Key::for_path::<ControlParams>("cylinder-servo/params").to_bytes();

@@ -12,7 +12,8 @@
 
 use miniconf::{Internal, Schema, TreeSchema};
 
-use super::messages::{Path, Value, ValueKind};
+use super::messages::Path;
+use crate::params::{Value, ValueKind};
 use crate::params::leaves::{self, LeafError};
 use crate::params::ControlParams;
 
@@ -143,7 +144,7 @@ pub mod tree {
 
     use super::PREFIX;
     use crate::params::{ControlParams, HomingMethod};
-    use crate::protocol::messages::Value;
+    use crate::params::Value;
 
     fn leaf<'a>(p: &'a mut ControlParams, path: &str) -> Option<&'a mut dyn Any> {
         path.strip_prefix(PREFIX)?.strip_prefix('.')?;

@@ -15,7 +15,10 @@ use super::frame::{decode, Feed, FrameReader};
 use super::messages::*;
 use super::params::PARAM_COUNT;
 use crate::params::leaves::{self, LeafError};
-use super::reason::Reason;
+use crate::capture::CaptureRequest;
+use crate::params::Value;
+use crate::reason::Reason;
+use crate::test_signals::TestSignal;
 use super::{PARAMS_SCHEMA_HASH, SCHEMA_HASH};
 use crate::controller::{ApplyError, Command, CommandError};
 use crate::params::{record, ControlParams, ParamError, ValidatedParams};
@@ -170,7 +173,7 @@ impl Server {
     fn status<D: DriveAccess>(drive: &D) -> Reply {
         let s = drive.status();
         let t = s.telemetry;
-        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.0, time_s: t.time_s, test_running: s.test_running })
+        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.bits(), time_s: t.time_s, test_running: s.test_running })
     }
 
     /// Staged on a copy, validated whole, then applied: nothing partial.
@@ -437,7 +440,7 @@ impl Server {
             t.load_force_estimate_n,
             t.mode as u8 as f32,
             f32::from_bits(t.faults.bits()),
-            f32::from(t.readiness.0),
+            f32::from(t.readiness.bits()),
         ];
         let mut values = heapless::Vec::new();
         for (bit, v) in all.iter().enumerate() {

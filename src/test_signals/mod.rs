@@ -4,7 +4,9 @@
 //! This module holds the signal and its clock; `controller::scope` checks
 //! the bounds, starts it, feeds it to the loops and ends it.
 
-use crate::protocol::{ChirpTarget, TestSignal};
+mod signal;
+
+pub use signal::{ChirpTarget, TestSignal};
 
 /// Longest test, seconds.
 pub const TEST_DURATION_MAX_S: f32 = 60.0;

@@ -92,7 +92,7 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
             "refusals": report.refusals.len(),
             "refusal_runs": report.grouped().into_iter().take(10).collect::<Vec<_>>(),
             "telemetry_records": n,
-            "faults": servo_core::FaultSet(faults).names().collect::<Vec<_>>(),
+            "faults": servo_core::FaultSet::from_bits_retain(faults).names().collect::<Vec<_>>(),
             "motor_tracking_rms_um": rms * 1e6,
             "motor_tracking_max_um": max * 1e6,
             "bar": { "rms_um": 5.0, "max_um": 50.0 },

@@ -289,7 +289,7 @@ pub fn info_json(c: &mut Client) -> Result<serde_json::Value> {
         "schema_hash": client::hex(&i.schema_hash),
         "params_schema_hash": client::hex(&i.params_schema_hash),
         "mode": format!("{:?}", i.mode),
-        "faults": servo_core::FaultSet(i.faults).names().collect::<Vec<_>>(),
+        "faults": servo_core::FaultSet::from_bits_retain(i.faults).names().collect::<Vec<_>>(),
         "pwm_frequency_hz": i.pwm_frequency_hz,
     }))
 }

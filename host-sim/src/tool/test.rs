@@ -164,7 +164,7 @@ pub fn wait_running(c: &mut Client) -> Result<()> {
                 return Ok(());
             }
             if s.faults != 0 {
-                bail!("faults latched: {:?}", servo_core::FaultSet(s.faults).names().collect::<Vec<_>>());
+                bail!("faults latched: {:?}", servo_core::FaultSet::from_bits_retain(s.faults).names().collect::<Vec<_>>());
             }
         }
         std::thread::sleep(Duration::from_millis(10));

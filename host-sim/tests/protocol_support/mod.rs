@@ -31,7 +31,7 @@ impl MockDrive {
         Self {
             params: ControlParams::DEFAULT,
             mode: Mode::Disabled,
-            readiness: Readiness(7),
+            readiness: Readiness::ALL,
             time_s: 1.0,
             position_reference_m: 0.25,
             commands: vec![],

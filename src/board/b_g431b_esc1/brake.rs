@@ -17,7 +17,7 @@
 //! | before the controller asks, or bridge off | output low | closed |
 //! | debugger halt | frozen at its last level (core stopped, no toggling) | closed |
 //! | interrupt stalled / too slow / not firing | static | closed |
-//! | HardFault, panic (panic-probe → `udf` → HardFault) | driven low by [`force_closed`] | closed |
+//! | any fault or unserved exception, panic (panic-probe → `udf` → HardFault) | driven low by [`force_closed`] in `exceptions::safe_state` | closed |
 //! | release asked, bridge on | 10 kHz square wave | open |
 //!
 //! # Pin choice: PB8 (ESC1 encoder connector, H3 / Z)
@@ -82,6 +82,72 @@ impl ReleaseSignal {
         self.high = release && !self.high;
         let high = self.high;
         PORT.bsrr().write(|w| if high { w.set_bs(PIN, true) } else { w.set_br(PIN, true) });
+    }
+}
+
+/// The brake's state feedback: a contact that closes to ground while the
+/// armature is pulled in (brake released), on PA15 (the ESC1's "PWM" input
+/// pad, free when the drive takes its commands over USART2/CAN) with the
+/// internal pull-up: high = brake applied (or the feedback wire broken),
+/// low = released. docs/firmware.md, *Holding brake*, has the circuit.
+/// False: no feedback fitted, the pin left alone.
+pub const FEEDBACK_FITTED: bool = false;
+pub const FEEDBACK_PORT: pac::gpio::Gpio = pac::GPIOA;
+pub const FEEDBACK_PIN: usize = 15;
+
+/// How long the feedback may disagree with the command before the
+/// `BRAKE_FEEDBACK` fault latches: twice the slowest of a typical spring
+/// brake's release and engage times (≤ 50 ms), in PWM periods at 20 kHz.
+pub const FEEDBACK_TIMEOUT_PERIODS: u32 = 2_000;
+
+/// Configures the feedback input (pull-up, input mode) if one is fitted.
+pub fn configure_feedback() {
+    if FEEDBACK_FITTED {
+        FEEDBACK_PORT.pupdr().modify(|w| w.set_pupdr(FEEDBACK_PIN, pac::gpio::vals::Pupdr::PULL_UP));
+        FEEDBACK_PORT.moder().modify(|w| w.set_moder(FEEDBACK_PIN, pac::gpio::vals::Moder::INPUT));
+    }
+}
+
+/// Whether the feedback says the brake is released (contact closed, pin low).
+#[inline(always)]
+pub fn feedback_released() -> bool {
+    FEEDBACK_PORT.idr().read().idr(FEEDBACK_PIN) == pac::gpio::vals::Idr::LOW
+}
+
+/// Counts how long the feedback has disagreed with the command.
+#[derive(Debug, Default)]
+pub struct FeedbackWatch {
+    disagree_periods: u32,
+}
+
+/// What the watch saw this period.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum FeedbackVerdict {
+    Agrees,
+    /// Disagreeing, not yet for long.
+    Settling,
+    /// Disagreeing for longer than [`FEEDBACK_TIMEOUT_PERIODS`].
+    Disagrees,
+}
+
+impl FeedbackWatch {
+    pub const fn new() -> Self {
+        Self { disagree_periods: 0 }
+    }
+
+    /// One period: `commanded_release` against `released` (the feedback).
+    #[inline(always)]
+    pub fn update(&mut self, commanded_release: bool, released: bool) -> FeedbackVerdict {
+        if commanded_release == released {
+            self.disagree_periods = 0;
+            return FeedbackVerdict::Agrees;
+        }
+        self.disagree_periods = self.disagree_periods.saturating_add(1);
+        if self.disagree_periods > FEEDBACK_TIMEOUT_PERIODS {
+            FeedbackVerdict::Disagrees
+        } else {
+            FeedbackVerdict::Settling
+        }
     }
 }
 

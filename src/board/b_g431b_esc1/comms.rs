@@ -6,7 +6,15 @@
 //! |---|---|---|
 //! | USART2 → ST-LINK/V2-1 VCP | PB3 TX, PB4 RX (AF7) | [`BAUD`] 8N1, DMA1 CH1 TX, DMA1 CH2 RX into a [`RX_RING_LEN`]-byte ring (no interrupt per byte) |
 //! | FDCAN1 → CAN transceiver | PA11 RX, PB9 TX (AF9) | CAN FD + BRS, 1 Mbit/s nominal, 5 Mbit/s data, kernel clock PCLK1 = 170 MHz |
+//! | transceiver shutdown (CAN_SHDN) | PC11, push-pull output | driven low: transceiver on (high = shut down); driven before FDCAN1 starts |
+//! | bus termination (CAN_TERM) | PC14, push-pull output | high: the board's 120 Ω across CANH–CANL; low: none ([`set_termination`]) |
 //! | parameter record | flash pages 62–63 (0x0801_F000…0x0801_FFFF) | two-page A/B record store ([`FlashStore`]) |
+//!
+//! Replies and telemetry are never awaited by the main task: it puts each
+//! encoded frame into [`TX_QUEUE`] (whole or not at all) and a writer task
+//! of its own (`uart_writer` in main.rs) sends the queue by DMA. So a 320-byte reply (3.5 ms
+//! on the line) never holds up CAN reception: the FDCAN receive FIFO holds
+//! 3 frames, and the platform's setpoint frames come every millisecond.
 //!
 //! Interrupts (`USART2`, `DMA1_CHANNEL1/2`, `FDCAN1_IT0/IT1`) sit at
 //! [`super::COMMS_IRQ_PRIORITY`] / [`super::DMA_IRQ_PRIORITY`], below the PWM
@@ -22,7 +30,9 @@ use embassy_stm32::can::frame::FdFrame;
 use embedded_can::{Id, StandardId};
 use embassy_stm32::can::{Can, CanConfigurator, OperatingMode};
 use embassy_stm32::mode::Async;
-use embassy_stm32::peripherals::{DMA1_CH1, DMA1_CH2, FDCAN1, FLASH, PA11, PB3, PB4, PB9, USART2};
+use embassy_stm32::peripherals::{DMA1_CH1, DMA1_CH2, FDCAN1, FLASH, PA11, PB3, PB4, PB9, PC11, PC14, USART2};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::pipe::Pipe;
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
 use embassy_stm32::{bind_interrupts, can, dma, pac, Peri};
 use servo_core::params::record::RECORD_MAX;
@@ -32,25 +42,19 @@ use servo_core::protocol::{ParamStore, Text};
 
 use super::super::FLASH_STALL;
 
-/// USART2 baud rate. The ST-LINK/V2-1's bridge (an STM32F103 at 72 MHz)
-/// makes 921 600 Bd as 72 MHz / (16 × 4.875) = 923 077 Bd (+0.16 %), this
-/// USART as 170 MHz / 184 = 923 913 Bd (+0.25 %): 0.09 % apart, far inside
-/// the ±2 % an 8N1 frame tolerates. ≈ 92 kB/s: a 1 kHz telemetry frame of
-/// 17 fields (≈ 80 bytes) fits.
-pub const BAUD: u32 = 921_600;
-/// Receive ring (DMA, circular). 512 B = 5.6 ms of bytes at full line rate
-/// (92 bytes/ms). The longest the main task goes without draining it is one
-/// reply sent by DMA and awaited (a `FRAME_MAX` = 320-byte frame takes
-/// 3.5 ms on the line), or a telemetry frame and a reply back to back
-/// (< 320 bytes together for telemetry's ≤ 24 values, ≈ 110 bytes, plus a
-/// reply); the host sends one request and waits for its reply (the protocol
-/// is request–reply; the setpoint stream at rate comes over CAN), so what
-/// can arrive meanwhile is at most one request frame (≤ 320 bytes) and
-/// telemetry's own cadence does not add input. A flash erase (≤ 40 ms stall
-/// of the CPU, not of the DMA) happens only during `Save`, when the host
-/// waits for the reply. An overrun is reported by the ring and the frame
-/// reader restarts (the host's request times out and is repeated).
-pub const RX_RING_LEN: usize = 512;
+pub use super::comms_sizes::BAUD;
+/// Receive ring (DMA, circular), in [`super::comms_sizes`] with the other
+/// sizes the comms test models. 512 B = 5.6 ms of bytes at full line rate
+/// (92 bytes/ms). The main task drains it between CAN frames and never
+/// waits for a transmission (replies go through [`TX_QUEUE`]); the host
+/// sends one request and waits for its reply (the protocol is
+/// request–reply; the setpoint stream at rate comes over CAN), so what can
+/// arrive meanwhile is at most one request frame (≤ 320 bytes). A flash
+/// erase (≤ 40 ms stall of the CPU, not of the DMA) happens only during
+/// `Save`, when the host waits for the reply. An overrun is reported by
+/// the ring and the frame reader restarts (the host's request times out
+/// and is repeated).
+pub use super::comms_sizes::{RX_RING_LEN, TX_QUEUE_LEN};
 /// CAN FD nominal (arbitration) bit rate.
 pub const CAN_NOMINAL_BPS: u32 = 1_000_000;
 /// CAN FD data-phase bit rate (bit-rate switching).
@@ -77,6 +81,8 @@ pub struct CommsPeripherals {
     pub(super) fdcan1: Peri<'static, FDCAN1>,
     pub(super) can_rx: Peri<'static, PA11>,
     pub(super) can_tx: Peri<'static, PB9>,
+    pub(super) can_shdn: Peri<'static, PC11>,
+    pub(super) can_term: Peri<'static, PC14>,
     pub(super) flash: Peri<'static, FLASH>,
 }
 
@@ -97,7 +103,12 @@ impl CommsPeripherals {
     /// Starts USART2 (ring-buffered DMA reception running) and FDCAN1
     /// (normal mode, filters: the setpoint and stop identifiers into FIFO 0),
     /// and opens the parameter store.
+    /// The transceiver is switched on and its terminator left out until
+    /// the parameters are known ([`set_termination`]).
     pub fn start(self) -> Comms {
+        transceiver_pins();
+        // Held for ever by being consumed here: nobody else gets the pins.
+        let _ = (self.can_shdn, self.can_term);
         Comms {
             serial: serial(self.usart2, self.usart_rx, self.usart_tx, self.dma_tx, self.dma_rx),
             can: fdcan(self.fdcan1, self.can_rx, self.can_tx),
@@ -124,6 +135,41 @@ fn serial(
     rx.start_uart();
     Ok(Serial { tx, rx })
 }
+
+/// The frames on their way out of USART2, in order (see the module's
+/// introduction). A critical section guards it: BASEPRI, never the PWM
+/// interrupt (`masking`).
+pub static TX_QUEUE: Pipe<CriticalSectionRawMutex, TX_QUEUE_LEN> = Pipe::new();
+
+/// Queues one encoded frame for USART2, whole or not at all, without
+/// waiting. False if the queue has no room for it (the frame is dropped:
+/// the caller counts and reports it).
+pub fn queue_frame(bytes: &[u8]) -> bool {
+    super::comms_sizes::queue_whole(&TX_QUEUE, bytes)
+}
+
+/// Drives the CAN transceiver's two control pins low: shutdown off (the
+/// transceiver on), terminator out. Output speed low; no pull (driven).
+fn transceiver_pins() {
+    let port = pac::GPIOC;
+    for pin in [CAN_SHDN_PIN, CAN_TERM_PIN] {
+        port.bsrr().write(|w| w.set_br(pin, true));
+        port.otyper().modify(|w| w.set_ot(pin, pac::gpio::vals::Ot::PUSH_PULL));
+        port.ospeedr().modify(|w| w.set_ospeedr(pin, pac::gpio::vals::Ospeedr::LOW_SPEED));
+        port.pupdr().modify(|w| w.set_pupdr(pin, pac::gpio::vals::Pupdr::FLOATING));
+        port.moder().modify(|w| w.set_moder(pin, pac::gpio::vals::Moder::OUTPUT));
+    }
+}
+
+/// Switches the board's bus terminator in or out (a parameter change takes
+/// effect at once).
+pub fn set_termination(on: bool) {
+    pac::GPIOC.bsrr().write(|w| if on { w.set_bs(CAN_TERM_PIN, true) } else { w.set_br(CAN_TERM_PIN, true) });
+}
+
+/// PC11 and PC14 (port C).
+const CAN_SHDN_PIN: usize = 11;
+const CAN_TERM_PIN: usize = 14;
 
 /// A received frame's standard identifier (`None` for an extended one).
 pub fn standard_id(frame: &FdFrame) -> Option<u16> {

@@ -12,9 +12,11 @@
 //! 1. timing: cycle stamp, ticks since the valley (the sampling instant);
 //! 2. acknowledge, read the five injected results and the encoder count;
 //! 3. serve at most one request from thread mode (after the time-critical
-//!    reads, before the step, so a command acts in this very period);
+//!    reads, before the step, so a command acts in this very period; a bulk
+//!    request only before a step that runs the current loop alone);
 //! 4. latch a hardware break; convert to SI; step the controller;
-//! 5. CCR1..3 ← (1 − duty) × ARR, MOE per `enable`, brake release signal;
+//! 5. CCR1..3 ← (1 − duty) × ARR, MOE per `enable` (never after a break:
+//!    the flag is read again after MOE is set), brake release signal;
 //! 6. overrun check; snapshot for thread mode every few periods;
 //! 7. lock-free counters (`ISR_STATS`).
 
@@ -27,7 +29,7 @@ use embassy_stm32::pac::timer::vals::Dir;
 use servo_core::mailbox::Handoff;
 use servo_core::{PwmCommand, SensorSample};
 
-use super::super::link::{CalibrationSums, IsrLink, IsrPhase, Reply, Request, Snapshot, SNAPSHOT_EVERY_PERIODS};
+use super::super::link::{CalibrationSums, Envelope, IsrLink, IsrPhase, Reply, Request, Snapshot, SNAPSHOT_EVERY_PERIODS};
 use super::super::{BoardStatus, ISR_STATS};
 use super::{brake, cal, setup, MAX_DUTY, RECONSTRUCT_ABOVE_DUTY};
 
@@ -45,12 +47,25 @@ pub struct IsrState {
     duty_older: [f32; 3],
     hw_trip: bool,
     hw_ocp_armed: bool,
+    /// The bridge may be switched on at all: the comparator break passed its
+    /// self-test and the option bytes keep the brake pin (BOOT0) from
+    /// selecting the boot mode. False: every period ends with the bridge off
+    /// whatever the controller asks (the controller holds the named fault).
+    bridge_permitted: bool,
     bus_voltage_v: f32,
     temperature_c: f32,
     last_entry_cycles: u32,
     have_last_entry: bool,
     brake: brake::ReleaseSignal,
+    /// The release signal of the latest period (what the feedback must show).
+    brake_release_commanded: bool,
+    brake_feedback: brake::FeedbackWatch,
+    /// The feedback fault as last reported to the controller.
+    brake_feedback_fault: bool,
     periods_to_snapshot: u32,
+    /// A bulk request taken in a period with a speed or position tick,
+    /// served in the next one (which runs the current loop only).
+    deferred: Option<Envelope<Request>>,
 }
 
 static STATE: Handoff<IsrState> = Handoff::new();
@@ -71,7 +86,7 @@ struct Raw {
 }
 
 impl IsrState {
-    pub fn new(link: IsrLink, arr: u16, period_cycles: u32, hw_ocp_armed: bool) -> Self {
+    pub fn new(link: IsrLink, arr: u16, period_cycles: u32, hw_ocp_armed: bool, boot_safe: bool) -> Self {
         Self {
             link,
             phase: IsrPhase::Idle,
@@ -83,12 +98,17 @@ impl IsrState {
             duty_older: [0.5; 3],
             hw_trip: false,
             hw_ocp_armed,
+            bridge_permitted: hw_ocp_armed && boot_safe,
             bus_voltage_v: 0.0,
             temperature_c: 0.0,
             last_entry_cycles: 0,
             have_last_entry: false,
             brake: brake::ReleaseSignal::new(),
+            brake_release_commanded: false,
+            brake_feedback: brake::FeedbackWatch::new(),
+            brake_feedback_fault: false,
             periods_to_snapshot: 0,
+            deferred: None,
         }
     }
 
@@ -116,8 +136,11 @@ impl IsrState {
                 Reply::Done
             }
             Request::ClearHardwareTrip => {
-                if self.hw_trip && !setup::comparators_high() {
-                    pac::TIM1.sr().modify(|w| w.set_bif(0, false));
+                if self.hw_trip && !setup::comparators_high() && !setup::supply_low() {
+                    pac::TIM1.sr().modify(|w| {
+                        w.set_bif(0, false);
+                        w.set_sbif(false);
+                    });
                     self.hw_trip = false;
                 }
                 Reply::HardwareTrip { cleared: !self.hw_trip }
@@ -166,6 +189,16 @@ impl IsrState {
         }
     }
 
+    /// Latches the hardware break (which already cleared MOE) and tells the
+    /// controller, so its loops stop pushing against a dead bridge and the
+    /// operator sees why (bridge off, brake applied).
+    fn latch_break(&mut self) {
+        self.hw_trip = true;
+        if let Some(c) = self.link.controller() {
+            c.report_bridge_break();
+        }
+    }
+
     /// Writes the command to TIM1 and the brake pin. Duties go to the
     /// preload registers and take effect at the next valley; MOE acts at once.
     fn apply(&mut self, cmd: PwmCommand) {
@@ -176,7 +209,7 @@ impl IsrState {
             ISR_STATS.bad_duty.fetch_add(1, Ordering::Relaxed);
         }
         let moe = t.bdtr().read().moe();
-        let bridge_on = cmd.enable && finite && !self.hw_trip;
+        let bridge_on = cmd.enable && finite && !self.hw_trip && self.bridge_permitted;
         if bridge_on {
             let arr = self.arr as f32;
             // PWM mode 2: the high side is on while CNT ≥ CCR.
@@ -186,6 +219,16 @@ impl IsrState {
             t.ccr(2).write(|w| w.set_ccr(ccr(c)));
             if !moe {
                 t.bdtr().modify(|w| w.set_moe(true));
+                // The break race: a comparator pulse that came after the
+                // flag was read at the top of this period cleared MOE in
+                // hardware (so `moe` read false), and the write above set it
+                // again. Read the flag after the write: once the break has
+                // fired, the bridge stays off (for the few cycles between the
+                // two writes at most, never for the rest of the period).
+                if break_flag() {
+                    t.bdtr().modify(|w| w.set_moe(false));
+                    self.latch_break();
+                }
             }
             self.duty_older = self.duty_recent;
             self.duty_recent = [a, b, c];
@@ -202,7 +245,26 @@ impl IsrState {
         }
         // Board interlock: the brake opens only while the bridge drives the
         // motor (a hardware break or a bad duty closes it in the same period).
-        self.brake.drive(cmd.brake_release && bridge_on);
+        self.brake_release_commanded = cmd.brake_release && bridge_on && !self.hw_trip;
+        self.brake.drive(self.brake_release_commanded);
+    }
+
+    /// The brake's feedback against the command: a disagreement longer
+    /// than the brake takes to move latches `BRAKE_FEEDBACK` (a controlled
+    /// stop: the bridge holds the load); agreement again lets it clear.
+    fn watch_brake_feedback(&mut self) {
+        let verdict = self.brake_feedback.update(self.brake_release_commanded, brake::feedback_released());
+        let fault = match verdict {
+            brake::FeedbackVerdict::Agrees => false,
+            brake::FeedbackVerdict::Settling => return,
+            brake::FeedbackVerdict::Disagrees => true,
+        };
+        if fault != self.brake_feedback_fault {
+            self.brake_feedback_fault = fault;
+            if let Some(c) = self.link.controller() {
+                c.report_board_condition(servo_core::protection::FaultSet::BRAKE_FEEDBACK, fault);
+            }
+        }
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -220,6 +282,15 @@ impl IsrState {
             ..Snapshot::INITIAL
         }
     }
+}
+
+/// Whether TIM1's break fired: the comparators (BIF) or the system break
+/// (SBIF: lockup, flash ECC, SRAM parity, supply monitor). Both stay set
+/// until software clears them.
+#[inline(always)]
+fn break_flag() -> bool {
+    let sr = pac::TIM1.sr().read();
+    sr.bif(0) || sr.sbif()
 }
 
 #[interrupt]
@@ -249,7 +320,7 @@ fn ADC1_2() {
         vbus: adc2.jdr(1).read().jdata(),
     };
     let encoder_count = pac::TIM4.cnt().read().cnt();
-    let break_fired = tim1.sr().read().bif(0);
+    let break_fired = break_flag();
 
     if OWNED.is_none() {
         *OWNED = STATE.claim();
@@ -266,19 +337,28 @@ fn ADC1_2() {
     s.last_entry_cycles = t0;
     s.have_last_entry = true;
 
-    let served = s.link.take_request().map(|request| {
+    // A bulk request (a parameter set, a capture or test-signal request:
+    // a few hundred bytes of copies and the controller's work) waits for a
+    // period that runs the current loop only: in a speed or position period
+    // it would lengthen the longest period (docs/cost.md, *Worst period*).
+    // The wait is one period; thread mode allows four.
+    let request = match s.deferred.take() {
+        Some(r) => Some(r),
+        None => s.link.take_request(),
+    };
+    let served = request.and_then(|request| {
+        let bulk = matches!(request.body, Request::ReadParams | Request::ApplyParams | Request::Bulk);
+        if bulk && !s.link.controller().is_none_or(|c| c.next_period_is_current_only()) {
+            s.deferred = Some(request);
+            return None;
+        }
         let reply = s.serve(request.body);
         s.link.reply(request.seq, reply);
+        Some(())
     });
 
     if break_fired && !s.hw_trip {
-        // Hardware already cleared MOE; the controller latches the trip
-        // (bridge off, brake applied) so its loops stop pushing against a
-        // dead bridge and the operator sees why.
-        s.hw_trip = true;
-        if let Some(c) = s.link.controller() {
-            c.report_bridge_break();
-        }
+        s.latch_break();
     }
     s.bus_voltage_v = raw.vbus as f32 * cal::VBUS_VOLTS_PER_CODE;
     s.temperature_c = cal::NTC_T0_C + (raw.ntc as f32 * cal::VOLTS_PER_CODE - cal::NTC_V_AT_T0) / cal::NTC_V_PER_C;
@@ -317,6 +397,9 @@ fn ADC1_2() {
         }
     };
     s.apply(cmd);
+    if brake::FEEDBACK_FITTED {
+        s.watch_brake_feedback();
+    }
 
     // A newer sequence already complete: this step came too late for it.
     if adc1.isr().read().jeos() {

@@ -63,9 +63,11 @@ use servo_core::ControlParams;
 pub mod brake;
 pub mod cal;
 pub mod comms;
+pub mod exceptions;
 mod handle;
 mod isr;
 mod setup;
+pub mod comms_sizes;
 
 pub use handle::Board;
 pub use setup::set_interrupt_priorities;
@@ -95,13 +97,37 @@ pub const TIME_DRIVER_PRIORITY: Priority = Priority::P4;
 
 /// Dead time between one switch of a leg turning off and the other turning
 /// on. The L6387E has interlocking but inserts no dead time, so TIM1 does.
-/// Turn-off of an STL180N6F7 through the L6387E (≈ 105 ns propagation plus a
-/// ≈ 120 nC gate discharged at ≈ 0.65 A, ≈ 200 ns) is ≈ 300 ns; 500 ns keeps
-/// ≈ 200 ns margin while costing 1 % of the 50 µs period (≈ 0.25 V of
-/// average voltage error at 24 V near current zero crossings). ST's MCSDK
-/// ships 750–800 ns for this board: raise it if the gate waveforms of a
-/// particular board show any overlap.
-pub const DEAD_TIME_NS: u32 = 500;
+///
+/// 800 ns is the vendor's value: ST's Motor Control SDK ships 750–800 ns for
+/// this board (MC Workbench, B-G431B-ESC1 power board) and other ESC1
+/// firmware uses 800 ns. Data-sheet typicals alone give a shorter turn-off:
+/// the L6387E's propagation delay (≈ 110 ns typical) plus discharging the
+/// STL180N6F7's gate (≈ 120 nC through the driver's ≈ 0.65 A sink current
+/// and the board's gate resistor, ≈ 200 ns) is ≈ 300 ns; the typicals do
+/// not cover the spread over temperature, the gate resistors' tolerance, the
+/// driver's maximum delay and the mismatch between its two channels, which
+/// is what the vendor's margin pays for. The cost is small: 1.6 % of the
+/// 50 µs period, ≈ 0.4 V of average voltage error at 24 V near current zero
+/// crossings (the current loop's integrator takes it up).
+///
+/// Lower it only after measuring the gate waveforms of the board in hand
+/// (docs/firmware.md, *Measuring the gate waveforms*), and never below
+/// [`DEAD_TIME_FLOOR_NS`]: the build refuses that.
+pub const DEAD_TIME_NS: u32 = 800;
+
+/// The shortest dead time this firmware builds with: twice the ≈ 300 ns
+/// turn-off estimated from data-sheet typicals (see [`DEAD_TIME_NS`]), the
+/// usual factor between a typical and a worst case over temperature and
+/// part spread. Below it, one slow gate on one board shoots a leg through
+/// and destroys the bridge on the first enable; no measurement on a sample
+/// board covers every board, so going lower means changing this floor in
+/// review with the measured margin, not a setting.
+pub const DEAD_TIME_FLOOR_NS: u32 = 600;
+
+const _: () = assert!(
+    DEAD_TIME_NS >= DEAD_TIME_FLOOR_NS,
+    "DEAD_TIME_NS is below DEAD_TIME_FLOOR_NS (src/board/b_g431b_esc1/mod.rs): a shoot-through risk"
+);
 
 /// Above this duty (in the period that contains the sample), a phase's
 /// low-side window around the valley is shorter than the ≈ 1 µs ringing
@@ -114,10 +140,6 @@ pub const RECONSTRUCT_ABOVE_DUTY: f32 = 0.90;
 /// least 1 µs of low-side time per period (2 % of 50 µs). The core's
 /// modulation limit (0.95 of the linear range → duty ≤ 0.975) stays below it.
 pub const MAX_DUTY: f32 = 0.98;
-
-/// Turn the comparator break on (recommended; a self-test at start-up turns
-/// it off, with an error in the log, if a comparator is already high).
-pub const HW_OVERCURRENT_BREAK: bool = true;
 
 /// Clock tree: 8 MHz crystal, PLL ×85/2/2 → 170 MHz SYSCLK = HCLK = PCLK1/2,
 /// range-1 boost (needed above 150 MHz).
@@ -140,6 +162,35 @@ pub fn clock_config() -> embassy_stm32::Config {
     // FDCAN1 from PCLK1 (170 MHz): exact 1 and 5 Mbit/s (`comms`).
     config.rcc.mux.fdcansel = embassy_stm32::rcc::mux::Fdcansel::PCLK1;
     config
+}
+
+/// The ESC1 switches a 120 Ω CAN bus terminator with PC14 (CAN_TERM), so
+/// it can drive either value of `control.stream.can_termination`. A board
+/// without the switch sets this false, and then refuses a set that asks
+/// for termination.
+pub const CAN_TERMINATION_SWITCHABLE: bool = true;
+
+/// Whether this board can do the bus termination `params` asks for.
+pub const fn can_drive_termination(params: &ControlParams) -> bool {
+    !params.stream.can_termination || CAN_TERMINATION_SWITCHABLE
+}
+
+const _: () = assert!(
+    can_drive_termination(&PARAMS),
+    "control.stream.can_termination: this board cannot switch a CAN bus terminator"
+);
+
+/// Flash prefetch and the instruction and data caches on (reset leaves
+/// them off; embassy's `init` sets only the wait states, 4 at 170 MHz):
+/// without them every fetch of the PWM interrupt's code from flash waits
+/// 4 cycles. The parameter store switches the data cache off around an
+/// erase and resets it after (`comms`).
+pub fn enable_flash_acceleration() {
+    embassy_stm32::pac::FLASH.acr().modify(|w| {
+        w.set_prften(true);
+        w.set_icen(true);
+        w.set_dcen(true);
+    });
 }
 
 /// What the board clamped in the parameter set.

@@ -22,7 +22,7 @@ use embassy_stm32::{Peri, Peripherals};
 use super::super::link;
 use super::{
     brake, cal, isr, Board, BoardError, ADC1_CH_I_U, ADC1_CH_I_W, ADC1_CH_NTC, ADC2_CH_I_V, ADC2_CH_VBUS,
-    COMMS_IRQ_PRIORITY, DEAD_TIME_NS, HW_OVERCURRENT_BREAK, JEXTSEL_TIM1_TRGO2, PWM_IRQ_PRIORITY, TIME_DRIVER_PRIORITY,
+    COMMS_IRQ_PRIORITY, DEAD_TIME_NS, JEXTSEL_TIM1_TRGO2, PWM_IRQ_PRIORITY, TIME_DRIVER_PRIORITY,
 };
 
 /// Puts every interrupt this image enables at its level: the PWM interrupt
@@ -56,6 +56,7 @@ impl Board {
         // annotation fails the build if the token here is another one.
         let brake_pin: Peri<'static, brake::Pin> = p.PB8;
         brake::configure_closed();
+        brake::configure_feedback();
 
         let hclk_hz = rcc::clocks(&p.RCC).hclk1.to_hertz().map(|h| h.0).unwrap_or(170_000_000);
         let tim_hz = rcc::frequency::<TIM1>().0;
@@ -108,7 +109,12 @@ impl Board {
         let period_cycles = 2 * u32::from(arr) * (hclk_hz / tim_hz).max(1);
 
         setup_opamps();
-        let hw_ocp_armed = if HW_OVERCURRENT_BREAK { setup_overcurrent_comparators() } else { false };
+        // A comparator already high with the bridge off fails the
+        // self-test: the break is then not armed, and the interrupt keeps
+        // the bridge off for good (`IsrState::apply`), the controller holding
+        // the named fault.
+        let hw_ocp_armed = setup_overcurrent_comparators();
+        setup_supply_monitor();
         setup_tim1(arr, dtg, hw_ocp_armed);
         setup_adcs()?;
 
@@ -123,7 +129,7 @@ impl Board {
         // The interrupt's state and its ends of the link, moved into it
         // before it is unmasked.
         let (thread_link, isr_link) = link::split().ok_or(BoardError::AlreadyUp)?;
-        isr::install(isr::IsrState::new(isr_link, arr, period_cycles, hw_ocp_armed)).map_err(|_| BoardError::AlreadyUp)?;
+        isr::install(isr::IsrState::new(isr_link, arr, period_cycles, hw_ocp_armed, brake::boot_pin_ignored())).map_err(|_| BoardError::AlreadyUp)?;
 
         set_interrupt_priorities();
         interrupt::ADC1_2.unpend();
@@ -172,6 +178,8 @@ impl Board {
                 fdcan1: p.FDCAN1,
                 can_rx: p.PA11,
                 can_tx: p.PB9,
+                can_shdn: p.PC11,
+                can_term: p.PC14,
                 flash: p.FLASH,
             }),
             cpu_hz: hclk_hz,
@@ -354,6 +362,26 @@ pub(super) fn comparators_high() -> bool {
     pac::COMP1.csr().read().value() || pac::COMP2.csr().read().value() || pac::COMP4.csr().read().value()
 }
 
+/// The supply monitor (PVD) at its 2.9 V threshold (PLS = 110, RM0440:
+/// falling edge ≈ 2.8 V): the ESC1's 3.3 V rail sagging that far means the
+/// gate drivers' logic inputs and the ADC reference are no longer what the
+/// loop assumes. Locked to TIM1's break in `setup_tim1`.
+fn setup_supply_monitor() {
+    // PWR's clock (embassy's `init` enables it for the boost mode; no
+    // reset here, which would undo that).
+    pac::RCC.apb1enr1().modify(|w| w.set_pwren(true));
+    pac::RCC.apb2enr().modify(|w| w.set_syscfgen(true));
+    pac::PWR.cr2().modify(|w| {
+        w.set_pls(0b110);
+        w.set_pvde(true);
+    });
+}
+
+/// Whether the supply monitor sees the 3.3 V rail below its threshold now.
+pub(super) fn supply_low() -> bool {
+    pac::PWR.sr2().read().pvdo()
+}
+
 /// TIM1: centre-aligned, PWM mode 2 on CH1–3 with complementary outputs and
 /// dead time, preloaded CCRs at 50 %, TRGO2 = update, outputs held off
 /// (MOE = 0, OSSI/OSSR = idle level, idle level low on all six), comparator
@@ -403,14 +431,24 @@ fn setup_tim1(arr: u16, dtg: u8, hw_ocp_armed: bool) {
         w.set_dtg(dtg);
         w.set_ossi(Ossi::IDLE_LEVEL);
         w.set_ossr(Ossr::IDLE_LEVEL);
-        w.set_bke(0, hw_ocp_armed);
+        // The break input on in every case (the system break above acts
+        // through it); the comparators feed it only if their self-test passed.
+        w.set_bke(0, true);
         w.set_bkp(0, Bkp::ACTIVE_HIGH);
         w.set_bkf(0, FilterValue::FCK_INT_N8);
         w.set_aoe(false);
         w.set_moe(false);
     });
-    // A Cortex-M4 lockup also breaks TIM1.
-    pac::SYSCFG.cfgr2().modify(|w| w.set_cll(true));
+    // The system break: a core lockup, a flash double-ECC error, an SRAM
+    // parity error and the supply monitor (PVD, `setup_supply_monitor`)
+    // clear MOE in hardware, like the comparators (RM0440, SYSCFG_CFGR2;
+    // the lock bits hold until reset). They set SR.SBIF besides BIF.
+    pac::SYSCFG.cfgr2().modify(|w| {
+        w.set_cll(true);
+        w.set_eccl(true);
+        w.set_spl(true);
+        w.set_pvdl(true);
+    });
     // Load ARR, CCRs and RCR into the shadow registers.
     t.egr().write(|w| w.set_ug(true));
     t.sr().write_value(pac::timer::regs::SrAdv(0));

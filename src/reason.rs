@@ -7,6 +7,9 @@
 //! the image no longer carries them (≈ 3 KB of strings and their copying
 //! into replies). `Reason::text` is never called on the board (the log
 //! prints the variant's name through defmt, whose strings are not in flash).
+//!
+//! The reasons are the core's: parameter validation, the scope, the test
+//! signals and the stream refuse with them; the protocol carries them.
 
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
@@ -15,19 +18,9 @@ macro_rules! reasons {
     ($($(#[$doc:meta])* $name:ident = $text:literal,)*) => {
         /// A refusal's reason (see the module documentation).
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Reason {
             $($(#[$doc])* $name,)*
-        }
-
-        /// The same variants, for their defmt format string only (see the
-        /// `Format` impl below).
-        #[cfg(feature = "defmt")]
-        mod defmt_names {
-            #[derive(defmt::Format)]
-            #[allow(dead_code)]
-            pub(super) enum Reason {
-                $($name,)*
-            }
         }
 
         impl Reason {
@@ -144,29 +137,6 @@ reasons! {
     BeyondMaxVelocity = "velocity_m_s beyond control.trajectory.max_velocity_m_s",
     StreamGap = "gap beyond control.stream.timeout_s: the stream has ended",
     StreamJump = "jump beyond control.trajectory.max_velocity_m_s since the last point",
-}
-
-/// What `derive(defmt::Format)` writes, the variant names as the format
-/// string and the variant's index as a `u8`, with the index taken from the
-/// value: the derived code passes a pointer to a constant per variant, a
-/// 368-byte table in flash. The log shows the same names.
-#[cfg(feature = "defmt")]
-impl defmt::Format for Reason {
-    /// The log macros take the two methods below; a direct caller of
-    /// `format` gets the variant's index (never a panic in the core).
-    fn format(&self, f: defmt::Formatter) {
-        defmt::write!(f, "Reason#{=u8}", *self as u8)
-    }
-
-    fn _format_tag() -> defmt::Str {
-        <defmt_names::Reason as defmt::Format>::_format_tag()
-    }
-
-    fn _format_data(&self) {
-        // Fieldless and without explicit discriminants: the discriminant is
-        // the variant's index, the derive's tag order.
-        defmt::export::u8(&(*self as u8));
-    }
 }
 
 impl core::fmt::Display for Reason {
