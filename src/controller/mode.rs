@@ -67,7 +67,9 @@ pub const TRANSITIONS: [(Mode, Mode); 32] = [
 
 /// Bit of `from → to` in [`Controller::transitions_taken`].
 pub const fn transition_bit(from: Mode, to: Mode) -> u128 {
-    1u128 << (from as u32 * MODES.len() as u32 + to as u32)
+    // 9 × 8 + 8 = 80 < 128: no overflow; wrapping_shl says so to the lints.
+    let index = (from as u32).wrapping_mul(MODES.len() as u32).wrapping_add(to as u32);
+    1u128.wrapping_shl(index)
 }
 
 /// The table as one mask of [`transition_bit`]s (built at compile time).
