@@ -291,7 +291,37 @@ fn board_condition_refuses_enable_while_it_stands() -> Outcome {
     Ok(())
 }
 
+/// `next_period_is_current_only` foretells the next step's kind: the board
+/// serves bulk requests only before a current-only step. The controller
+/// counts periods from 1 at its first step; speed ticks fall on multiples
+/// of the speed divider (position ticks are speed ticks too). Checked over
+/// two position periods, running and disabled (the count runs in every
+/// mode).
+fn next_period_kind_is_foretold() -> Outcome {
+    let p = ControlParams::DEFAULT.commissioned();
+    let div = p.rates.speed_loop_divider;
+    check!(div >= 2, "speed divider {}", div);
+    let mut c = Controller::new(p);
+    let nominal = SensorSample::idle(BUS_V);
+    for tick in 1..=(2 * p.rates.position_loop_divider + 3) {
+        if tick == p.rates.position_loop_divider {
+            let _ = c.command(Command::Enable);
+        }
+        let current_only = tick % div != 0;
+        check!(
+            c.next_period_is_current_only() == current_only,
+            "tick {}: foretold {}, the step is {}",
+            tick,
+            c.next_period_is_current_only(),
+            if current_only { "current-only" } else { "a speed tick" }
+        );
+        c.step(&nominal);
+    }
+    Ok(())
+}
+
 test_main!(
+    next_period_kind_is_foretold,
     board_condition_refuses_enable_while_it_stands,
     closed_loop_smoke_nominal_inputs,
     fault_latches_until_cleared,

@@ -78,17 +78,24 @@ fn a_mismatched_rig_file_is_flagged_with_channel_and_scale() {
             t.figure
         );
     }
-    // The gate governs the verdict: it leads, and nothing is named.
-    assert_eq!(
-        s.verdict.kind, "baseline_mismatch",
-        "{}",
-        s.verdict.headline
-    );
+    // The back-EMF is the motor's own, whatever the load: a rig mismatch,
+    // the gate leads, and no library effect is named.
+    assert_eq!(s.verdict.kind, "rig_mismatch", "{}", s.verdict.headline);
     assert!(
         s.verdict.headline.contains(&g.message),
         "{}",
         s.verdict.headline
     );
+    // The wrong parameter is among the re-fitted ones: the flux, off the
+    // back-EMF (the rig file claims 1.3 × the motor's).
+    assert!(
+        s.verdict.refitted.iter().any(|p| p.starts_with("flux_linkage_wb")),
+        "{:?}",
+        s.verdict.refitted
+    );
+    let rf = s.refit.as_ref().expect("re-fit");
+    let (file, log) = rf.params["flux_linkage_wb"];
+    assert!((log / file - 1.0 / 1.3).abs() < 0.03, "flux {file} → {log}");
     assert!(
         s.verdict.cause.is_none() && s.verdict.cause_group.is_empty(),
         "{}",

@@ -130,6 +130,7 @@ fn run_case(spec: Spec) -> Outcome {
         // separate (the truth is not among them).
         "library_effect" | "library_group" => "wrong",
         "disturbance" => "disturbance_modelled",
+        "rig_mismatch" => "rig_mismatch",
         _ => "honestly_unexplained",
     };
     let primary = CHANNELS
@@ -264,7 +265,7 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
             o.gates
                 .iter()
                 .any(|g| g.starts_with("physics_mismatch") || g.starts_with("nominal_poor_fit"))
-                && o.verdict == "baseline_mismatch"
+                && o.verdict == "rig_mismatch"
         })
         .count();
     let figures = serde_json::json!({
@@ -375,8 +376,8 @@ fn open_world_sample() {
         "mismatched rig file not flagged: {:?}",
         out[4].gates
     );
-    // The gate governs the verdict: it leads, and nothing is named.
-    assert_eq!(out[4].verdict, "baseline_mismatch", "{}", out[4].headline);
+    // The back-EMF gate governs the verdict: a rig mismatch.
+    assert_eq!(out[4].verdict, "rig_mismatch", "{}", out[4].headline);
 }
 
 /// The suite's cases: every library effect held out once, `novel_reps`

@@ -8,6 +8,7 @@
 use host_sim::diagnose::disturbance::DisturbanceFit;
 use host_sim::diagnose::events::TimeStructure;
 use host_sim::diagnose::gates::Gate;
+use host_sim::diagnose::refit::Refit;
 use host_sim::diagnose::residual::NCH;
 use host_sim::diagnose::summary::RankEntry;
 use host_sim::diagnose::verdict::{decide, Inputs, Verdict, ADEQUATE_INPUT_R2_MAX_PCT};
@@ -73,6 +74,8 @@ fn run(
         top_halves: Some((lib, lib, 0.05)),
         back_emf_heldout: back_emf,
         implausible_after_stack: still_implausible,
+        refit: None,
+        refit_dist: None,
     })
 }
 
@@ -119,67 +122,116 @@ fn a_remainder_the_inputs_still_explain_names_nothing() {
 }
 
 #[test]
-fn a_broken_baseline_leads_and_names_nothing() {
+fn a_nominal_unsound_on_its_own_reference_leads_and_names_nothing() {
     let r = [entry("load_offset", 95.0, &[], &[])];
-    for g in [
-        gate("physics_mismatch", Some("voltage"), 0.77),
-        gate("nominal_poor_fit", Some("torque"), -20.0),
-    ] {
-        let v = run(
-            &r,
-            std::slice::from_ref(&g),
-            95.0,
-            10.0,
-            FITS,
-            None,
-            Some(1.0),
-            None,
-        );
-        assert_eq!(v.kind, "baseline_mismatch", "{}", v.headline);
-        assert!(v.cause.is_none() && v.cause_group.is_empty());
-        assert!(
-            v.headline.starts_with("**The nominal does not fit"),
-            "{}",
-            v.headline
-        );
-        assert!(v.headline.contains(&g.message), "{}", v.headline);
+    let g = gate("reference_unsound", Some("torque"), -5.0);
+    let v = run(&r, std::slice::from_ref(&g), 95.0, 10.0, FITS, None, Some(1.0), None);
+    assert_eq!(v.kind, "baseline_mismatch", "{}", v.headline);
+    assert!(v.cause.is_none() && v.cause_group.is_empty());
+    assert!(
+        v.headline.starts_with("**The nominal does not hold on what it was fitted on"),
+        "{}",
+        v.headline
+    );
+    assert!(v.headline.contains(&g.message), "{}", v.headline);
+}
+
+#[test]
+fn a_poor_or_negative_fit_of_the_diagnosed_log_alone_blocks_nothing() {
+    // The size of the gap is not a verdict on the nominal: a large
+    // unmeasured force drives the diagnosed log's Fit below zero too.
+    let r = [entry("load_offset", 95.0, &[], &[])];
+    for f in [-20.0, 30.0] {
+        let g = [gate("nominal_poor_fit", Some("torque"), f)];
+        let v = run(&r, &g, 95.0, 10.0, [Some(40.0), Some(60.0), Some(95.0)], None, Some(1.0), None);
+        assert_eq!(v.kind, "library_effect", "{}", v.headline);
+        assert_ne!(v.kind, "rig_mismatch", "{}", v.headline);
     }
 }
 
 #[test]
-fn a_poor_fit_names_a_cause_only_when_the_stack_accounts_for_it() {
+fn a_back_emf_off_the_rig_file_is_a_rig_mismatch_with_the_refit_figures() {
     let r = [entry("load_offset", 95.0, &[], &[])];
-    let g = [gate("nominal_poor_fit", Some("torque"), 30.0)];
-    // The stack leaves the torque channel's training Fit under the gate.
-    let v = run(
-        &r,
-        &g,
-        95.0,
-        10.0,
-        [Some(40.0), Some(60.0), Some(95.0)],
-        None,
-        Some(1.0),
-        None,
-    );
-    assert_eq!(v.kind, "baseline_mismatch", "{}", v.headline);
+    let g = [gate("physics_mismatch", Some("voltage"), 0.77)];
+    let refit = Refit {
+        changed: vec!["flux_linkage_wb 1.75e-2 → 1.35e-2 (-23 %)".into()],
+        primary_shrink_pct: 88.0,
+        weighted_shrink_pct: 80.0,
+        halves_primary_shrink_pct: (86.0, 87.0),
+        stable: true,
+        ..Default::default()
+    };
+    let v = decide_with_refit(&r, &g, &refit, None);
+    assert_eq!(v.kind, "rig_mismatch", "{}", v.headline);
     assert!(v.cause.is_none());
-    // The stack lifts it over the gate: the effect is what the nominal missed.
-    let v = run(
-        &r,
-        &g,
-        95.0,
-        10.0,
-        [Some(80.0), Some(60.0), Some(95.0)],
-        None,
-        Some(1.0),
-        None,
-    );
-    assert_eq!(v.kind, "library_effect", "{}", v.headline);
-    assert!(
-        v.headline.contains("accounts for the poor fit"),
-        "{}",
-        v.headline
-    );
+    assert_eq!(v.refitted, refit.changed);
+    assert!(v.headline.contains("flux_linkage_wb"), "{}", v.headline);
+    assert!((v.explained_pct - 88.0).abs() < 1e-9);
+}
+
+fn decide_with_refit(
+    ranking: &[RankEntry],
+    gates: &[Gate],
+    refit: &Refit,
+    dist: Option<&DisturbanceFit>,
+) -> Verdict {
+    let ts = structure(10.0);
+    let lib = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
+    decide(&Inputs {
+        gates,
+        ranking,
+        top: ranking.first().map(|r| r.effect.as_str()),
+        stack: &[ranking[0].effect.clone()],
+        stack_weighted: lib / 2.0,
+        stack_primary: lib,
+        stack_train_fit: FITS,
+        dist,
+        structure: Some(&ts),
+        top_halves: Some((lib, lib, 0.05)),
+        back_emf_heldout: Some(1.0),
+        implausible_after_stack: None,
+        refit: Some(refit),
+        refit_dist: None,
+    })
+}
+
+#[test]
+fn the_stronger_of_refit_and_disturbance_leads() {
+    let r = [entry("viscous_asym", 30.0, &[], &[])];
+    let refit = |shrink: f64| Refit {
+        changed: vec!["moving_mass_kg 1.407e2 → 2.100e2 (+49 %)".into()],
+        primary_shrink_pct: shrink,
+        halves_primary_shrink_pct: (shrink, shrink),
+        stable: true,
+        ..Default::default()
+    };
+    let d = DisturbanceFit {
+        base: "nominal".into(),
+        primary_shrink_pct: 85.0,
+        over_stack_points: 55.0,
+        heldout_change_points: 12,
+        side: "an external force on the rod".into(),
+        ..Default::default()
+    };
+    // Events no re-fit removes: the disturbance leads, with the re-fit's
+    // figure beside it.
+    let v = decide_with_refit(&r, &[], &refit(35.0), Some(&d));
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
+    assert!(v.headline.contains("an external force on the rod"), "{}", v.headline);
+    assert!(v.headline.contains("re-fitting the nominal's own parameters removes"), "{}", v.headline);
+    // A re-fit explaining more than the disturbance: a rig mismatch.
+    let v = decide_with_refit(&r, &[], &refit(92.0), Some(&d));
+    assert_eq!(v.kind, "rig_mismatch", "{}", v.headline);
+    // An unstable re-fit is no rig mismatch, whatever it removes.
+    let mut unstable = refit(92.0);
+    unstable.stable = false;
+    let v = decide_with_refit(&r, &[], &unstable, Some(&d));
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
+    // A re-fit with no parameter beyond tolerance names no rig mismatch.
+    let mut unchanged = refit(92.0);
+    unchanged.changed.clear();
+    let v = decide_with_refit(&r, &[], &unchanged, None);
+    assert_eq!(v.kind, "unexplained", "{}", v.headline);
 }
 
 #[test]

@@ -217,7 +217,14 @@ impl Controller {
         let told_to_turn = w_ref.abs() > f.encoder_lost_speed_rad_s && self.mode != Mode::Homing;
         self.no_count_s = if !moved && told_to_turn { self.no_count_s + dt } else { 0.0 };
         if self.no_count_s >= f.encoder_lost_time_s {
-            self.raise(FaultSet::ENCODER_LOST);
+            // No count while told to turn: a lost encoder if the back-EMF
+            // says the rotor turns, else a stall (the rotor stands, the
+            // position cannot follow: a controlled stop, not a fall).
+            if self.emf_watch.sees_rotation(&self.params) {
+                self.raise(FaultSet::ENCODER_LOST);
+            } else {
+                present.insert(FaultSet::POSITION_FOLLOWING);
+            }
         }
         present
     }

@@ -62,6 +62,12 @@ pub struct DisturbanceFit {
     /// Level unit: the force at the nut (N, physics nominal, from the
     /// torque channel via the lead) or the logged current (A, regression).
     pub level_unit: String,
+    /// Every held-out interval between change points with its level (in
+    /// `level_unit`): the disturbance's time course.
+    pub intervals: Vec<Interval>,
+    /// Where it acts: an external force on the rod, or the actuator input
+    /// (the motor's torque or current), as far as the channels tell.
+    pub side: String,
     pub median_abs_level: f64,
     pub max_abs_level: f64,
     /// Share of its change points within `LOCK_TOL_S` of a logged-signal
@@ -96,6 +102,18 @@ pub struct DisturbanceFit {
     /// Share of the stack's remainder it explains (weighted), %.
     /// (Zero channels: the levels helped no channel on training.)
     pub remainder_explained_pct: f64,
+}
+
+/// One interval between change points with its level (unscaled: N for
+/// `Levels::Force`, the channel's residual unit for `Levels::PerChannel`).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Interval {
+    #[serde(skip)]
+    pub channel: usize,
+    pub run: usize,
+    pub start_s: f64,
+    pub end_s: f64,
+    pub level: f64,
 }
 
 /// Change points of a segment, each with the weighted residual energy it
@@ -188,8 +206,8 @@ fn gain(mode: Levels, s: &Segment, i: usize, c: usize, nominal: &Nominal) -> f64
 /// parity-p samples only and form a signal over the whole segment, which
 /// predicts the samples of the other parity (smoothed where the channel's
 /// residual is smoothed). Returns the prediction per channel, the levels
-/// (interval start, level on all samples: N for `Force`, the torque
-/// channel's unit for `PerChannel`) and every change point with the
+/// (channel, level on all of an interval's samples: N for `Force`, the
+/// channel's own unit for `PerChannel`) and every change point with the
 /// weighted residual energy it explains.
 #[allow(clippy::too_many_arguments)]
 fn cv_levels(
@@ -200,7 +218,7 @@ fn cv_levels(
     mode: Levels,
     nominal: &Nominal,
     w: &[f64; NCH],
-) -> (ChannelPred, Vec<(usize, f64)>, Steps) {
+) -> (ChannelPred, Vec<(usize, usize, usize, f64)>, Steps) {
     let n = s.len();
     let b = 2 * (2 * s.sg_m + 1);
     let mut bounds = vec![0];
@@ -305,12 +323,11 @@ fn cv_levels(
             steps.push((a, e));
         }
         last = Some(whole);
-        let lc = match mode {
-            Levels::Force => chans.first().copied(),
-            Levels::PerChannel => chans.contains(&TORQUE).then_some(TORQUE),
-        };
-        if let Some(c) = lc.filter(|c| whole[*c].1 > 0.0) {
-            levels.push((a, whole[c].0));
+        // Every channel's level (one force under each channel for `Force`).
+        for &c in chans {
+            if whole[c].1 > 0.0 {
+                levels.push((c, a, e, whole[c].0));
+            }
         }
     }
     let pred = std::array::from_fn(|c| {
@@ -372,7 +389,7 @@ pub fn predict(
     mode: Levels,
     nominal: &Nominal,
     w: &[f64; NCH],
-) -> (Remainder, Vec<Steps>, Vec<f64>) {
+) -> (Remainder, Vec<Steps>, Vec<Interval>) {
     let cps = events::detect_floor(segs, rem, k, [0.0, DETECT_WEIGHT_FLOOR]);
     let chans: Vec<usize> = [TORQUE, POSITION]
         .into_iter()
@@ -386,7 +403,13 @@ pub fn predict(
         .zip(&cps)
         .map(|((s, r), cp)| {
             let (p, lv, st) = cv_levels(s, r, &chans, cp, mode, nominal, w);
-            levels.extend(lv.iter().map(|l| l.1));
+            levels.extend(lv.into_iter().map(|(c, a, e, l)| Interval {
+                channel: c,
+                run: s.run,
+                start_s: s.t[a],
+                end_s: s.t[e - 1] + s.dt,
+                level: l,
+            }));
             // Change points with no channel in use still count (zero weight).
             steps.push(if chans.is_empty() {
                 cp.iter().map(|i| (*i, 0.0)).collect()
@@ -461,24 +484,48 @@ pub fn fit(
     let wp = one(primary);
     let gp = gap(held, rem_held, Some(&pred), &wp);
     let gp_stack = gap(held, rem_held, None, &wp);
-    let (scale, unit) = match (nominal, mode) {
-        (Nominal::Physics(_), Levels::Force) => (
+    // The levels are reported on the channel the figures are read on: the
+    // primary channel if the disturbance acts there, else the first
+    // channel it acts on (a force: N at the nut on every channel).
+    let used: Vec<usize> = (0..NCH).filter(|c| use_ch[*c]).collect();
+    let level_ch = if used.contains(&primary) {
+        Some(primary)
+    } else {
+        used.first().copied()
+    };
+    let (scale, unit) = match (nominal, mode, level_ch) {
+        (_, _, None) => (0.0, "none (the levels helped no channel on training)"),
+        (Nominal::Physics(_), Levels::Force, _) => (
             1.0,
             "N (force at the nut, from the torque and position channels)",
         ),
-        (Nominal::Physics(p), _) => (1.0 / p.k, "N (force at the nut, from the torque channel)"),
-        (Nominal::Regression(_), _) => (1.0, "A (logged current: an input disturbance)"),
+        (Nominal::Physics(p), _, Some(TORQUE)) => {
+            (1.0 / p.k, "N (force at the nut, from the torque channel)")
+        }
+        (Nominal::Physics(_), _, Some(_)) => (1.0, "m (scale − motor side)"),
+        (Nominal::Regression(_), _, Some(TORQUE)) => {
+            (1.0, "A (logged current: an input disturbance)")
+        }
+        (Nominal::Regression(_), _, Some(_)) => (1.0, "m (tracking error)"),
     };
-    let mut abs: Vec<f64> = levels.iter().map(|l| (l * scale).abs()).collect();
+    let intervals: Vec<Interval> = levels
+        .iter()
+        .filter(|l| Some(l.channel) == level_ch)
+        .map(|l| Interval {
+            level: l.level * scale,
+            ..l.clone()
+        })
+        .collect();
+    let mut abs: Vec<f64> = intervals.iter().map(|l| l.level.abs()).collect();
     abs.sort_by(f64::total_cmp);
     let n_cp: usize = cps.iter().map(Vec::len).sum();
-    let acting: Vec<usize> = match nominal {
-        Nominal::Physics(_) => vec![TORQUE, POSITION],
-        Nominal::Regression(_) => vec![TORQUE],
-    }
-    .into_iter()
-    .filter(|c| w[*c] > 0.0)
-    .collect();
+    // An axial force loads the motor and deflects the drive train (or, in
+    // a regression nominal, shows in the current and in the tracking
+    // error): torque and position, never the voltage equation.
+    let acting: Vec<usize> = [TORQUE, POSITION]
+        .into_iter()
+        .filter(|c| w[*c] > 0.0)
+        .collect();
     let w_act: [f64; NCH] = std::array::from_fn(|c| if acting.contains(&c) { w[c] } else { 0.0 });
     let dur: f64 = held.iter().map(|s| s.len() as f64 * s.dt).sum();
     let fitd = DisturbanceFit {
@@ -499,6 +546,17 @@ pub fn fit(
             .collect(),
         mean_interval_s: dur / (n_cp + held.len()).max(1) as f64,
         level_unit: unit.into(),
+        intervals,
+        side: match (nominal, mode) {
+            (_, _) if used.is_empty() => "nothing (the levels helped no channel on training)".into(),
+            (Nominal::Physics(_), Levels::Force) => "an external force on the rod (one force explains the motor torque and the drive train's deflection together)".into(),
+            (Nominal::Physics(_), _) if use_ch[POSITION] && use_ch[TORQUE] => "an external force on the rod (it deflects the drive train as it loads the motor)".into(),
+            (Nominal::Physics(_), _) if use_ch[TORQUE] => "the actuator input (the motor's torque: no deflection of the drive train follows it), or a force too small to deflect the drive train above its floor".into(),
+            (Nominal::Physics(_), _) => "the position measurement only (a deflection no torque follows: the scale or its mount)".into(),
+            (Nominal::Regression(_), _) if use_ch[TORQUE] && use_ch[POSITION] => "an external force or the actuator input (both show in the current and the tracking error; a regression nominal cannot tell them apart)".into(),
+            (Nominal::Regression(_), _) if use_ch[TORQUE] => "the actuator input or a load (the current only)".into(),
+            (Nominal::Regression(_), _) => "the position (tracking error) only: no current follows it".into(),
+        },
         median_abs_level: abs.get(abs.len() / 2).copied().unwrap_or(0.0),
         max_abs_level: abs.last().copied().unwrap_or(0.0),
         weighted_shrink_pct: shrink(gap_nominal_h, g),

@@ -310,67 +310,66 @@ pub fn analyse(
         }
     }
     let slow_share_pct = if tot > 0.0 { 100.0 * slow / tot } else { 0.0 };
-    let input_correlation: Vec<(String, f64)> = [
-        ("speed", 0usize),
-        ("acceleration", 1),
-        ("load", 2),
-        ("current", 3),
-        ("position", 4),
-        ("direction of motion", 5),
-        ("current × time (a drifting gain)", 6),
-    ]
-    .iter()
-    .map(|(name, k)| {
-        let (mut sxy, mut sxx, mut syy, mut sx, mut sy, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for (s, r) in segs.iter().zip(rem) {
-            let Some(x) = &r[c] else { continue };
-            let sgn: Vec<f64>;
-            let u: &[f64] = match *k {
-                5 => {
-                    sgn =
-                        s.v.iter()
-                            .enumerate()
-                            .map(|(i, v)| {
-                                if v.abs() > 1e-4 {
-                                    v.signum()
-                                } else {
-                                    s.dir.get(i).copied().unwrap_or(0.0)
-                                }
-                            })
-                            .collect();
-                    &sgn
+    // Never the channel's own output (`inputs::own_output_free`): on the
+    // torque channel no current, and the drifting gain is the nominal
+    // torque's.
+    let torque = c == super::residual::TORQUE;
+    let free: Vec<inputs::OwnOutputFree> = segs.iter().map(|s| inputs::own_output_free(s, c)).collect();
+    let mut names = vec!["speed", "acceleration", "load", "position", "direction of motion"];
+    if !torque {
+        names.push("current");
+    }
+    names.push(if torque {
+        "nominal torque × time (a drifting gain)"
+    } else {
+        "current × time (a drifting gain)"
+    });
+    let input_correlation: Vec<(String, f64)> = names
+        .iter()
+        .map(|name| {
+            let (mut sxy, mut sxx, mut syy, mut sx, mut sy, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for ((s, r), f) in segs.iter().zip(rem).zip(&free) {
+                let Some(x) = &r[c] else { continue };
+                let u: Vec<f64> = match *name {
+                    "speed" => f.v.clone(),
+                    "acceleration" => f.a.clone(),
+                    "load" => s.f_load.clone(),
+                    "position" => f.x.clone(),
+                    "current" => f.current.clone(),
+                    "direction of motion" => f
+                        .v
+                        .iter()
+                        .enumerate()
+                        .map(|(i, v)| {
+                            if v.abs() > 1e-4 {
+                                v.signum()
+                            } else {
+                                s.dir.get(i).copied().unwrap_or(0.0)
+                            }
+                        })
+                        .collect(),
+                    _ => f.gain.iter().zip(&s.t_rel).map(|(g, t)| g * t).collect(),
+                };
+                for i in 0..s.len() {
+                    let a = s.weight(c, i) * x[i];
+                    sxy += a * u[i];
+                    sxx += a * a;
+                    syy += u[i] * u[i];
+                    sx += a;
+                    sy += u[i];
+                    n += 1.0;
                 }
-                6 => {
-                    sgn = s.iq.iter().zip(&s.t_rel).map(|(i, t)| i * t).collect();
-                    &sgn
-                }
-                _ => [&s.v, &s.a, &s.f_load, &s.iq, &s.x][*k],
-            };
-            for i in 0..s.len() {
-                let a = s.weight(c, i) * x[i];
-                sxy += a * u[i];
-                sxx += a * a;
-                syy += u[i] * u[i];
-                sx += a;
-                sy += u[i];
-                n += 1.0;
             }
-        }
-        let cov = sxy / n - sx * sy / n / n;
-        let var = (sxx / n - (sx / n).powi(2)) * (syy / n - (sy / n).powi(2));
-        (
-            name.to_string(),
-            if var > 0.0 {
-                (cov / var.sqrt()).abs()
-            } else {
-                0.0
-            },
-        )
-    })
-    .collect();
+            let cov = sxy / n - sx * sy / n / n;
+            let var = (sxx / n - (sx / n).powi(2)) * (syy / n - (sy / n).powi(2));
+            (
+                name.to_string(),
+                if var > 0.0 { (cov / var.sqrt()).abs() } else { 0.0 },
+            )
+        })
+        .collect();
     let best_in = input_correlation
         .iter()
-        .filter(|(n, _)| !(c == super::residual::TORQUE && n == "current"))
         .cloned()
         .fold((String::new(), 0.0), |m, v| if v.1 > m.1 { v } else { m });
     let white = p > WHITE_P;

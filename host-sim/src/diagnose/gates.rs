@@ -46,10 +46,84 @@ pub struct Gate {
     pub figure: f64,
 }
 
-/// Gates after which no cause is named: the rig's physics does not fit
-/// the log (torque scale off, or a channel worse than its mean).
+/// Gates after which no cause is named: the nominal is unsound on what it
+/// was fitted on (`reference_unsound`). The diagnosed log's own fit never
+/// breaks the baseline — a poor or negative Fit there is what a large gap
+/// looks like, whatever its cause (`verdict` weighs the explanations).
 pub fn baseline_broken(g: &Gate) -> bool {
-    g.kind == "physics_mismatch" || (g.kind == "nominal_poor_fit" && g.figure < 0.0)
+    g.kind == "reference_unsound"
+}
+
+/// Regression nominal: the reference's held-out Fit % (the regression
+/// fitted on one half of the reference's runs, scored on the other, both
+/// ways) at or below this means the nominal explains nothing of its own
+/// healthy data beyond the mean.
+pub const REFERENCE_HELDOUT_FIT_MIN_PCT: f64 = 0.0;
+/// ... or this many points below its in-sample Fit: it over-fits the
+/// reference, so a log's gap against it is the regression's, not the rig's.
+pub const REFERENCE_DROP_POINTS: f64 = 20.0;
+
+/// The regression nominal judged on what it was fitted on: its in-sample
+/// Fit on the reference and its held-out Fit on halves of the reference
+/// (alternate runs, or the two halves in time of a single run).
+/// `reference_unsound` blocks every cause; `reference_poor_fit` (in-sample
+/// Fit under `NOMINAL_FIT_MIN_PCT`, held-out as good) is a warning: the
+/// healthy rig's own scatter is the floor every figure is relative to.
+pub fn reference_gates(reference: &Log, reg: &super::residual::Regression) -> anyhow::Result<Vec<Gate>> {
+    use super::residual::{build_segments, fit_regression_segments, regression_fit_pct, zero_regression};
+    let segs = build_segments(reference, &Nominal::Regression(zero_regression()), 0.0)?;
+    let parts: [Vec<Segment>; 2] = if segs.len() >= 2 {
+        std::array::from_fn(|h| segs.iter().skip(h).step_by(2).cloned().collect())
+    } else {
+        std::array::from_fn(|h| {
+            segs.iter()
+                .map(|s| {
+                    let mid = s.len() / 2;
+                    let (a, b) = if h == 0 { (0, mid) } else { (mid, s.len()) };
+                    super::slice_segment(s, a, b, false)
+                })
+                .collect()
+        })
+    };
+    fn refs(v: &[Segment]) -> Vec<&Segment> {
+        v.iter().filter(|s| !s.is_empty()).collect()
+    }
+    let all = refs(&segs);
+    let inside = regression_fit_pct(reg, &all);
+    let fits: [[Option<f64>; 2]; 2] = std::array::from_fn(|h| {
+        let r = fit_regression_segments(&refs(&parts[h]));
+        regression_fit_pct(&r, &refs(&parts[1 - h]))
+    });
+    let mut out = Vec::new();
+    for (k, c) in [TORQUE, super::residual::POSITION].into_iter().enumerate() {
+        let (Some(fi), Some(a), Some(b)) = (inside[k], fits[0][k], fits[1][k]) else {
+            continue;
+        };
+        let held = 0.5 * (a + b);
+        let name = if c == TORQUE { "current" } else { "tracking error" };
+        if held <= REFERENCE_HELDOUT_FIT_MIN_PCT || fi - held > REFERENCE_DROP_POINTS {
+            out.push(Gate {
+                kind: "reference_unsound".into(),
+                channel: Some(CHANNELS[c].into()),
+                message: format!(
+                    "the regression nominal does not hold on its own reference `{}`: {name} Fit {fi:.1} % in-sample, {held:.1} % on the half of the reference it was not fitted on (held-out gate > {REFERENCE_HELDOUT_FIT_MIN_PCT:.0} %, drop gate {REFERENCE_DROP_POINTS:.0} points); a gap against it is the regression's, not the rig's",
+                    reference.source
+                ),
+                figure: held,
+            });
+        } else if fi < NOMINAL_FIT_MIN_PCT[c] {
+            out.push(Gate {
+                kind: "reference_poor_fit".into(),
+                channel: Some(CHANNELS[c].into()),
+                message: format!(
+                    "the regression nominal explains the {name} of its own reference `{}` only partly: Fit {fi:.1} % in-sample, {held:.1} % on held-out halves (as good: the nominal is sound, the healthy rig's own scatter is the floor every figure is relative to)",
+                    reference.source
+                ),
+                figure: fi,
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// Whether two logs carry the same data (every common column equal to
@@ -132,7 +206,7 @@ pub fn fit_gates(
                     CHANNELS[c],
                     unit(c),
                     NOMINAL_FIT_MIN_PCT[c],
-                    if ft < 0.0 { ", worse than the signal's mean: the rig's physics cannot fit this channel" } else { "" }
+                    if ft < 0.0 { ", worse than the signal's mean — a large gap, which a wrong rig file and a large unmeasured force both leave: the verdict weighs a re-fit of the nominal's parameters against a disturbance" } else { "" }
                 ),
                 figure: ft,
             });

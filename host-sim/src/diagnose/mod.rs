@@ -9,6 +9,7 @@
 //! part) → `report` (markdown, PNG, summary.json).
 
 pub mod cli;
+pub mod compare;
 pub mod cranfield;
 pub mod disturbance;
 pub mod effects;
@@ -20,6 +21,7 @@ pub mod gates;
 pub mod log;
 pub mod plausible;
 pub mod rank;
+pub mod refit;
 pub mod regions;
 pub mod replay;
 pub mod report;
@@ -229,6 +231,35 @@ pub fn diagnose_with(
             list.join("\n  ")
         );
     }
+    if let Some(r) = reference {
+        compare::comparable(log, r, "reference")?;
+    }
+    if let Some(h) = heldout {
+        compare::comparable(log, h, "held-out log")?;
+        // The training log is the reference and the held-out log is
+        // another run: nothing can be trained on the reference (the nominal
+        // was fitted on it), so the held-out log is diagnosed on its own,
+        // split in time — its first part's events train, the rest's score.
+        if reference.is_some_and(|r| gates::same_data(log, r))
+            && !gates::same_data(h, log)
+        {
+            let mut d = diagnose_with(h, None, reference, nominal, tilt_default_deg, opts)?;
+            d.summary.gates.insert(0, gates::Gate {
+                kind: "training_is_reference_split".into(),
+                channel: None,
+                message: format!(
+                    "the training log `{}` is the reference the nominal was fitted on, so nothing can be trained on it: the held-out log `{}` is diagnosed on its own, its events cross-validated in time (the disturbance's choices and every fit made on one part of it, scored on the other)",
+                    log.source, h.source
+                ),
+                figure: 1.0,
+            });
+            d.summary.verdict.headline = format!(
+                "(Training = reference: the held-out log split in time.) {}",
+                d.summary.verdict.headline
+            );
+            return Ok(d);
+        }
+    }
     let mut segments = residual::build_segments(log, &nominal, tilt_default_deg)?;
     if let Some(h) = heldout {
         for s in &mut segments {
@@ -267,6 +298,9 @@ pub fn diagnose_with(
         &rk.not_ranked,
         &|c| channel_unit(&nominal, c),
     ));
+    if let (Nominal::Regression(reg), Some(r)) = (&nominal, reference) {
+        gates.extend(gates::reference_gates(r, reg)?);
+    }
     let blocked = gates
         .iter()
         .any(|g| g.kind.ends_with("_is_training") || g.kind.ends_with("_is_reference"));
@@ -475,7 +509,35 @@ pub fn diagnose_with(
         .as_ref()
         .filter(|_| !implausible.is_empty())
         .map(|(t, p)| plausible::still_implausible(&implausible, (t, p), &train, &nominal, &w));
+    // The rig-mismatch explanation: the nominal's own parameters re-fitted
+    // on training; and the disturbance on what the re-fit leaves.
+    let (refit, refit_dist) = if blocked {
+        (None, None)
+    } else {
+        let (rf, pred_rh) = refit::fit(&train, &held, &nominal, &w, primary);
+        let pred_rt: Vec<fit::ChannelPred> = train
+            .iter()
+            .map(|s| refit::predict_on(&rf, s, &nominal))
+            .collect();
+        let (rem_rh, rem_rt) = (remainder(&held, &pred_rh), remainder(&train, &pred_rt));
+        let (mut d, _, _) = disturbance::fit(
+            &train,
+            &rem_rt,
+            &held,
+            &rem_rh,
+            &nominal,
+            &w,
+            primary,
+            gap_before_h,
+            gap_primary_h,
+        );
+        d.base = "refit".into();
+        d.over_stack_points = d.primary_shrink_pct - rf.primary_shrink_pct.max(0.0);
+        (Some(rf), Some(d))
+    };
     let verdict = verdict::decide(&verdict::Inputs {
+        refit: refit.as_ref(),
+        refit_dist: refit_dist.as_ref(),
         implausible_after_stack,
         gates: &gates,
         ranking: &ranking,
@@ -539,6 +601,8 @@ pub fn diagnose_with(
         gates,
         time_structure,
         disturbance: Some(dist),
+        refit,
+        refit_disturbance: refit_dist,
         verdict,
         wall_s: t0.elapsed().as_secs_f64(),
         replay: None,

@@ -20,7 +20,6 @@ mod savitzky_golay;
 
 pub use lost_motion::*;
 pub use physics::*;
-use regression::reg_features;
 pub use regression::*;
 use savitzky_golay::sg;
 pub use savitzky_golay::*;

@@ -104,6 +104,11 @@ pub struct Summary {
     pub time_structure: Vec<events::TimeStructure>,
     /// The disturbance effect (unmeasured force / input disturbance as a signal).
     pub disturbance: Option<disturbance::DisturbanceFit>,
+    /// The nominal's own parameters re-fitted on training, scored on the
+    /// held-out part: the rig-mismatch explanation.
+    pub refit: Option<super::refit::Refit>,
+    /// The disturbance fitted on what the re-fit leaves.
+    pub refit_disturbance: Option<disturbance::DisturbanceFit>,
     /// The open-world verdict.
     pub verdict: verdict::Verdict,
     pub wall_s: f64,

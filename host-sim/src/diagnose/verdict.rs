@@ -8,6 +8,7 @@
 //! share of the gap. Effects the log cannot separate are named as a group.
 
 use super::disturbance::DisturbanceFit;
+use super::refit::Refit;
 use super::events::TimeStructure;
 use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
 use super::gates::{Gate, NOMINAL_FIT_MIN_PCT};
@@ -24,6 +25,12 @@ pub const MOST_OF_GAP_PCT: f64 = 66.7;
 /// Points a disturbance must add over the library stack to be preferred:
 /// its time course then matters more than any constant-parameter effect.
 pub const DISTURBANCE_OVER_STACK_POINTS: f64 = 20.0;
+/// A re-fit of the nominal's parameters must explain this many points
+/// more than a library stack to lead it: the re-fit's drag and constant
+/// force together are an asymmetric Coulomb friction, its constant force a
+/// load offset — where both explain as much, the library effect is the
+/// more specific answer.
+pub const LIBRARY_TIE_POINTS: f64 = 5.0;
 /// Residual analysis of the named model (model validation as in Ljung,
 /// *System Identification*, ch. 16: the residual of an adequate model is
 /// independent of the inputs): when the logged inputs still explain this
@@ -66,12 +73,19 @@ pub struct Inputs<'a> {
     /// The implausible fits still implausible once refitted on what the
     /// stack leaves (`plausible::still_implausible`; `None`: no stack).
     pub implausible_after_stack: Option<Vec<String>>,
+    /// The nominal's own parameters re-fitted on training, scored on the
+    /// held-out part (`refit`): the rig-mismatch explanation.
+    pub refit: Option<&'a Refit>,
+    /// The disturbance fitted on what the re-fit leaves (its
+    /// `over_stack_points` are points over the re-fit).
+    pub refit_dist: Option<&'a DisturbanceFit>,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Verdict {
-    /// `library_effect`, `library_group`, `disturbance`, `unexplained`,
-    /// `baseline_mismatch` or `nothing_to_find`.
+    /// `library_effect`, `library_group`, `disturbance`, `rig_mismatch`,
+    /// `unexplained`, `baseline_mismatch` (the nominal is unsound on what
+    /// it was fitted on) or `nothing_to_find`.
     pub kind: String,
     /// The headline, first line of the report.
     pub headline: String,
@@ -90,6 +104,11 @@ pub struct Verdict {
     pub remainder_why: String,
     /// The best library effects with their share of the gap (primary-channel %).
     pub library_shares: Vec<(String, f64)>,
+    /// Each explanation's primary-channel shrink, %, as weighed:
+    /// `library`, `disturbance`, `refit`, `refit_plus_disturbance`.
+    pub explanations: std::collections::BTreeMap<String, f64>,
+    /// The re-fitted parameters beyond tolerance (kind `rig_mismatch`).
+    pub refitted: Vec<String>,
 }
 
 /// How the baseline gates govern the verdict.
@@ -103,10 +122,9 @@ enum Baseline<'a> {
     NoLibraryCause(&'a Gate),
 }
 
-/// `physics_mismatch`, a negative Fit, or a `nominal_poor_fit` that the
-/// stack does not account for (its channel's training Fit with the stack
-/// still under the gate) break the baseline; a poor fit the stack lifts
-/// over the gate survives — the effect itself is what the nominal missed.
+/// Only a nominal unsound on what it was fitted on (`gates::baseline_broken`)
+/// breaks the baseline; a poor fit of the diagnosed log is the gap itself
+/// (noted when the stack accounts for it).
 /// `implausible_fits` blocks library causes unless the stack accounts for
 /// it too: refitted on what the stack leaves, fewer than
 /// `IMPLAUSIBLE_FITS_MISMATCH` effects stay implausible.
@@ -130,14 +148,9 @@ fn baseline<'a>(
                     "The nominal fits the {} channel poorly (training Fit {:.1} %), but with the library stack it reaches {f:.1} %: the stack accounts for the poor fit. ",
                     CHANNELS[c], g.figure
                 )),
-                other => {
-                    broken.push(g);
-                    notes.push(format!(
-                        "No library stack accounts for the poor {} fit (training Fit {} with the stack). ",
-                        CHANNELS[c],
-                        other.map_or("unchanged".to_string(), |f| format!("{f:.1} %"))
-                    ));
-                }
+                // The diagnosed log's own fit is the size of the gap, not
+                // a verdict on the nominal: the explanations weigh it.
+                _ => {}
             }
         }
     }
@@ -275,7 +288,7 @@ pub fn decide(i: &Inputs) -> Verdict {
         v.remaining_gap_pct = 100.0 - v.explained_pct;
         let msgs: Vec<&str> = gs.iter().map(|g| g.message.as_str()).collect();
         v.headline = format!(
-            "**The nominal does not fit this log** — {}. {lead}No cause is named against this baseline: library effects and a disturbance fitted to it would stand in for the mismatch. {REMAINING} {:.1} %; the remainder is {ch} ({why}). Library effects would explain: {share_txt}.",
+            "**The nominal does not hold on what it was fitted on** — {}. {lead}No cause is named against this baseline: library effects, a re-fit and a disturbance fitted to it would stand in for the regression's own misfit. {REMAINING} {:.1} %; the remainder is {ch} ({why}). Library effects would explain: {share_txt}.",
             msgs.join("; "),
             v.remaining_gap_pct
         );
@@ -287,24 +300,168 @@ pub fn decide(i: &Inputs) -> Verdict {
     // inadequate) plus levels of zero is not "explained by a disturbance".
     // It must then add its own `DISTURBANCE_OVER_STACK_POINTS`.
     let dist_own = dist.is_some_and(|d| d.base == "nominal" || dist_better);
-    if dist_total >= MOST_OF_GAP_PCT && dist_own && (lib < MOST_OF_GAP_PCT || dist_better) {
-        let d = dist.expect("checked");
-        v.kind = "disturbance".into();
-        v.explained_pct = dist_total;
-        v.explained_by = "library stack + disturbance".into();
-        v.remaining_gap_pct = 100.0 - dist_total;
-        v.headline = format!(
-            "{lead}The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect: {} change points, levels up to {:.3e} {} (median {:.3e}); {PRIMARY} {dist_total:.1} % ({} points over the library stack), {WEIGHTED_ACTING} ({}) {:.1} %, {WEIGHTED} {:.1} %; {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+    let dist_ok = dist_total >= MOST_OF_GAP_PCT && dist_own && (lib < MOST_OF_GAP_PCT || dist_better);
+    // The re-fit of the nominal's own parameters: a rig mismatch when it is
+    // stable over the training halves and a rig parameter is beyond its
+    // tolerance. A re-fit that only adds a constant force is an unmeasured
+    // constant force (a disturbance without a time course).
+    let flux_gate = gates
+        .iter()
+        .find(|g| g.kind == "physics_mismatch" && g.channel.as_deref() == Some("voltage"));
+    let refit = i.refit;
+    let r_valid = refit.is_some_and(|r| r.stable && !r.changed.is_empty() && !r.only_constant_force);
+    let r_total = refit.filter(|_| r_valid).map_or(0.0, |r| r.primary_shrink_pct.max(0.0));
+    let const_force = refit
+        .filter(|r| r.stable && r.only_constant_force)
+        .map_or(0.0, |r| r.primary_shrink_pct.max(0.0));
+    // Re-fit and disturbance together (the disturbance on the re-fit's
+    // remainder): both must carry their own share.
+    let rd = i
+        .refit_dist
+        .filter(|d| r_valid && !d.locked_to_signals)
+        .map(|d| (d.primary_shrink_pct.max(0.0), d.over_stack_points));
+    let rd_ok = rd.is_some_and(|(t, add)| {
+        t >= MOST_OF_GAP_PCT && add >= DISTURBANCE_OVER_STACK_POINTS && r_total >= DISTURBANCE_OVER_STACK_POINTS
+    });
+    v.explanations.insert("library".into(), lib_raw);
+    v.explanations.insert("disturbance".into(), dist_total);
+    v.explanations.insert("refit".into(), refit.map_or(0.0, |r| r.primary_shrink_pct.max(0.0)));
+    if let Some((t, _)) = rd {
+        v.explanations.insert("refit_plus_disturbance".into(), t);
+    }
+    let refit_txt = refit.map_or(String::new(), |r| {
+        format!(
+            "re-fitting the nominal's own parameters removes {PRIMARY} {:.1} % ({WEIGHTED} {:.1} %; on each half of the training part alone {:.0} / {:.0} %{})",
+            r.primary_shrink_pct,
+            r.weighted_shrink_pct,
+            r.halves_primary_shrink_pct.0,
+            r.halves_primary_shrink_pct.1,
+            if r.changed.is_empty() {
+                ", no parameter beyond its tolerance".to_string()
+            } else {
+                format!("; beyond tolerance: {}", r.changed.join(", "))
+            }
+        )
+    });
+    let dist_txt = |d: &DisturbanceFit, total: f64| {
+        format!(
+            "{} change points (at {}), levels up to {:.3e} {} (median {:.3e}), acting as {}; {PRIMARY} {total:.1} %, {WEIGHTED_ACTING} ({}) {:.1} %, {WEIGHTED} {:.1} %",
             d.heldout_change_points,
+            d.change_times_s
+                .iter()
+                .take(8)
+                .map(|(r, t)| format!("run {r} {t:.3} s"))
+                .collect::<Vec<_>>()
+                .join(", ")
+                + if d.change_times_s.len() > 8 { ", …" } else { "" },
             d.max_abs_level,
             d.level_unit.split(' ').next().unwrap_or(""),
             d.median_abs_level,
-            d.over_stack_points.round(),
+            d.side,
             d.acting_channels.join(" + "),
             d.acting_weighted_shrink_pct,
             d.weighted_shrink_pct,
+        )
+    };
+    let r_ok = r_total >= MOST_OF_GAP_PCT;
+    // The strongest explanation leads: a library effect unless another
+    // explains more (a disturbance by `DISTURBANCE_OVER_STACK_POINTS`, its
+    // existing margin); between a re-fit and a disturbance, the larger.
+    let other_best = [
+        (r_ok || rd_ok).then_some(if rd_ok { r_total.max(rd.map_or(0.0, |x| x.0)) } else { r_total }),
+        dist_ok.then_some(dist_total),
+        (const_force >= MOST_OF_GAP_PCT).then_some(const_force),
+    ]
+    .into_iter()
+    .flatten()
+    .fold(0.0, f64::max);
+    let lib_leads = lib >= MOST_OF_GAP_PCT
+        && !(r_ok && r_total > lib + LIBRARY_TIE_POINTS)
+        && !(dist_ok && dist_better)
+        && !(const_force >= MOST_OF_GAP_PCT && const_force >= lib + DISTURBANCE_OVER_STACK_POINTS);
+    // The rig's flux measured off the back-EMF is this motor's whatever the
+    // load: a rig mismatch on physics alone, figures from the re-fit.
+    let dist_cmp = if dist_ok { dist_total } else { 0.0 }.max(if const_force >= MOST_OF_GAP_PCT {
+        const_force
+    } else {
+        0.0
+    });
+    let rig_leads = flux_gate.is_some()
+        || (!lib_leads
+            && (r_ok || rd_ok && r_total >= rd.map_or(0.0, |x| x.1))
+            && r_total >= dist_cmp);
+    if rig_leads {
+        let r = refit.cloned().unwrap_or_default();
+        let (total, with_dist) = match rd {
+            Some((t, add)) if add >= DISTURBANCE_OVER_STACK_POINTS && t >= r_total => (t, true),
+            _ => (r_total.max(refit.map_or(0.0, |r| r.primary_shrink_pct.max(0.0))), false),
+        };
+        v.kind = "rig_mismatch".into();
+        v.refitted = r.changed.clone();
+        v.explained_pct = total;
+        v.explained_by = if with_dist {
+            "re-fitted nominal + disturbance".into()
+        } else {
+            "re-fitted nominal".into()
+        };
+        v.remaining_gap_pct = 100.0 - total;
+        v.headline = format!(
+            "{lead}**Rig mismatch**: the nominal's own parameters do not match this log{} — {refit_txt}.{} {} {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+            flux_gate.map_or(String::new(), |g| format!(" ({})", g.message)),
+            match (with_dist, i.refit_dist) {
+                (true, Some(d)) => format!(
+                    " On what the re-fit leaves, an unmeasured disturbance adds {:.0} points: {}.",
+                    d.over_stack_points,
+                    dist_txt(d, d.primary_shrink_pct)
+                ),
+                _ => String::new(),
+            },
+            match dist {
+                Some(d) if !with_dist && dist_total > 0.0 => format!(
+                    "A disturbance alone would remove {PRIMARY} {dist_total:.1} % ({} change points): less than the re-fit.",
+                    d.heldout_change_points
+                ),
+                _ => String::new(),
+            },
             v.remaining_gap_pct
         );
+        return v;
+    }
+    if !lib_leads && (dist_ok || rd_ok || const_force >= MOST_OF_GAP_PCT) && other_best >= MOST_OF_GAP_PCT {
+        v.kind = "disturbance".into();
+        if dist_ok && dist_total >= const_force && !(rd_ok && rd.map_or(0.0, |x| x.0) > dist_total) {
+            let d = dist.expect("dist_ok");
+            v.explained_pct = dist_total;
+            v.explained_by = "library stack + disturbance".into();
+            v.remaining_gap_pct = 100.0 - dist_total;
+            v.headline = format!(
+                "{lead}The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect or a wrong rig file: {} ({} points over the library stack); {REMAINING} {:.1} %. For comparison, {refit_txt}. Library effects alone: {share_txt}.",
+                dist_txt(d, dist_total),
+                d.over_stack_points.round(),
+                v.remaining_gap_pct
+            );
+        } else if let (true, Some(d), Some((t, add))) = (rd_ok, i.refit_dist, rd) {
+            v.explained_pct = t;
+            v.explained_by = "re-fitted nominal + disturbance".into();
+            v.remaining_gap_pct = 100.0 - t;
+            v.refitted = refit.map_or(Vec::new(), |r| r.changed.clone());
+            v.headline = format!(
+                "{lead}The held-out gap is explained by an unmeasured disturbance with a time course on top of changed rig parameters: {} ({add:.0} points over the re-fit); {refit_txt}. {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+                dist_txt(d, t),
+                v.remaining_gap_pct
+            );
+        } else {
+            let r = refit.expect("constant force from the re-fit");
+            v.explained_pct = const_force;
+            v.explained_by = "constant unmeasured force".into();
+            v.remaining_gap_pct = 100.0 - const_force;
+            v.headline = format!(
+                "{lead}The held-out gap is explained by a **constant unmeasured force** of {:.1} N at the nut (acting as an external force; no time course, no rig parameter beyond its tolerance): {PRIMARY} {const_force:.1} % ({WEIGHTED} {:.1} %); {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+                r.constant_force_n,
+                r.weighted_shrink_pct,
+                v.remaining_gap_pct
+            );
+        }
     } else if lib >= MOST_OF_GAP_PCT {
         let top_name = top.unwrap_or("?");
         let group = group_of(ranking, top_name);
@@ -332,17 +489,20 @@ pub fn decide(i: &Inputs) -> Verdict {
             );
         }
     } else {
-        let best = lib_raw.max(dist_total);
+        let r_raw = refit.map_or(0.0, |r| r.primary_shrink_pct.max(0.0));
+        let best = lib_raw.max(dist_total).max(r_raw);
         v.kind = "unexplained".into();
         v.explained_pct = best;
-        v.explained_by = if dist_total > lib_raw {
+        v.explained_by = if best == dist_total && dist_total > 0.0 {
             "disturbance".into()
+        } else if best == r_raw && r_raw > 0.0 {
+            "re-fitted nominal".into()
         } else {
             "library stack".into()
         };
         v.remaining_gap_pct = 100.0 - best;
         v.headline = format!(
-            "{lead}**Unexplained**: no library effect with stable parameters, stack or disturbance removes most of the held-out gap — {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects explain at most: {share_txt}{}{}{}{}.",
+            "{lead}**Unexplained**: no library effect with stable parameters, stack, re-fit of the nominal's parameters or disturbance removes most of the held-out gap — {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects explain at most: {share_txt}{}{}{}{}{}.",
             v.remaining_gap_pct,
             unstable.unwrap_or_default(),
             blocked.unwrap_or_default(),
@@ -357,6 +517,11 @@ pub fn decide(i: &Inputs) -> Verdict {
                     d.heldout_change_points, d.primary_shrink_pct
                 ),
                 _ => String::new(),
+            },
+            if refit.is_some() {
+                format!("; {refit_txt}{}", if refit.is_some_and(|r| !r.stable) { " — not stable over the training halves" } else { "" })
+            } else {
+                String::new()
             }
         );
     }

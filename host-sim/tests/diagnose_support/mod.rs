@@ -5,6 +5,7 @@
 //! what a truth rig = nominal + effect means.
 #![allow(dead_code)]
 
+pub mod gap;
 pub mod open;
 pub mod truth;
 

@@ -19,6 +19,8 @@
 //! | LED / button             | PC6 / PC10 (active low)                          |
 //! | holding-brake release    | PB8 (Hall H3 / encoder Z pad): 10 kHz square wave = release, anything else = brake closed (see `brake`) |
 //! | overcurrent              | COMP1/2/4 (+: PA1/PA7/PB0, −: DAC3) → TIM1 BRK   |
+//! | CAN transceiver          | PC11 CAN_SHDN (low = on), PC14 CAN_TERM (high = 120 Ω in) |
+//! | brake feedback (optional) | PA15 ("PWM" pad), pull-up, low = released     |
 //!
 //! The ESC1 has no external break pin wired; its overcurrent protection is
 //! internal: the comparators watch the shunt amplifier inputs against a DAC3
@@ -53,7 +55,12 @@
 //! | [`cal`] | raw code → SI unit constants (shunts, dividers, NTC, trip level) | — |
 //! | `setup.rs` | bring-up: GPIO, OPAMP, DAC3/COMP, TIM1, ADC injected, encoder | thread mode, once |
 //! | `isr.rs` | the `ADC1_2` interrupt: requests, sample conversion, controller step, duties | PWM interrupt |
-//! | [`brake`] | the brake pin and its dynamic (toggled) release signal | PWM interrupt, HardFault |
+//! | [`brake`] | the brake pin, its dynamic (toggled) release signal, the feedback input, the boot-pin check | PWM interrupt, `safe_state` |
+//! | [`brake_feedback`] | the feedback's verdict per period (HAL-free) | PWM interrupt |
+//! | [`exceptions`] | every unserved exception → `safe_state` (bridge off, brake closed) | any exception |
+//! | [`comms`] | USART2, FDCAN1 and the transceiver pins, the transmit queue, the parameter record in flash | thread mode |
+//! | [`comms_sizes`] | the transports' rates and sizes, the transmit queue's rule (HAL-free) | thread mode |
+//! | [`can_stream`] | the CAN setpoint stream's receiving side | thread mode |
 //! | `handle.rs` | [`Board`]: what thread mode holds and asks through the link | thread mode |
 
 use embassy_stm32::interrupt::Priority;
@@ -61,7 +68,9 @@ use embassy_stm32::time::Hertz;
 use servo_core::ControlParams;
 
 pub mod brake;
+pub mod brake_feedback;
 pub mod cal;
+pub mod can_stream;
 pub mod comms;
 pub mod exceptions;
 mod handle;

@@ -4,7 +4,7 @@
 //! the inputs predict is a model error, not an unmeasured disturbance.
 
 use super::Remainder;
-use crate::diagnose::residual::{Segment, TORQUE};
+use crate::diagnose::residual::{Segment, POSITION, TORQUE};
 
 /// Folds of the cross-validated regressions of the remainder (inputs,
 /// kinematic angle): alternating blocks of this length, s — long against
@@ -132,42 +132,83 @@ fn derivative(y: &[f64], m: usize, dt: f64) -> Vec<f64> {
 }
 
 /// The inputs the remainder is regressed on: 1, speed, direction of
-/// motion, |speed|, acceleration, jerk, load, nut force, its rate, current
-/// (not on the torque channel, whose residual is the current minus the
-/// nominal: its noise would explain itself), position, current × time (a
-/// drifting gain). Jerk and the force's rate are there because a signal
-/// logged late by τ leaves `−τ ẏ`: a delay is correlated with the inputs'
-/// derivatives.
+/// motion, |speed|, acceleration, jerk, load, nut force, its rate,
+/// current, position, and a drifting gain. Jerk and the force's rate are
+/// there because a signal logged late by τ leaves `−τ ẏ`: a delay is
+/// correlated with the inputs' derivatives.
+///
+/// A channel's residual is never explained by its own measured output or
+/// by anything computed from it (`own_output_free`): on the torque channel
+/// (the logged current minus the nominal) the current and the current ×
+/// time are left out — its own noise and its own drift would explain
+/// themselves — and the drifting gain is the *nominal* torque × time; on a
+/// position channel measured by the scale alone (no encoder) speed,
+/// acceleration and position come from the reference, not from the scale.
 pub fn input_features(s: &Segment, c: usize) -> Vec<Vec<f64>> {
     let m = s.sg_m.max(1);
-    let jerk = derivative(&s.a, m, s.dt);
+    let k = own_output_free(s, c);
+    let jerk = derivative(&k.a, m, s.dt);
     let fdot = derivative(&s.f_ax, m, s.dt);
     (0..s.len())
         .map(|i| {
-            let v = s.v[i];
+            let v = k.v[i];
             let sg = if v.abs() > 1e-4 {
                 v.signum()
             } else {
                 s.dir.get(i).copied().unwrap_or(0.0)
             };
-            let iq = if c == TORQUE { 0.0 } else { s.iq[i] };
             let fax = s.f_ax.get(i).copied().unwrap_or(0.0);
             vec![
                 1.0,
                 v,
                 sg,
                 v.abs(),
-                s.a[i],
+                k.a[i],
                 jerk[i],
                 s.f_load[i],
                 fax,
                 fdot[i],
-                iq,
-                s.x[i],
-                s.iq[i] * s.t_rel[i],
+                k.current[i],
+                k.x[i],
+                k.gain[i] * s.t_rel[i],
             ]
         })
         .collect()
+}
+
+/// The kinematics, current and gain signal channel `c`'s remainder may be
+/// regressed on: none of them is the channel's own measured output or
+/// computed from it.
+pub struct OwnOutputFree {
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+    pub x: Vec<f64>,
+    /// The logged current, zero on the torque channel (its own output).
+    pub current: Vec<f64>,
+    /// What a drifting gain multiplies: the logged current on the other
+    /// channels, the nominal torque (from the motion and the load) on the
+    /// torque channel.
+    pub gain: Vec<f64>,
+}
+
+pub fn own_output_free(s: &Segment, c: usize) -> OwnOutputFree {
+    let n = s.len();
+    let nominal_torque: Vec<f64> = match (&s.y[TORQUE], &s.r[TORQUE]) {
+        (Some(y), Some(r)) => y.iter().zip(r).map(|(y, r)| y - r).collect(),
+        _ => vec![0.0; n],
+    };
+    let torque = c == TORQUE;
+    // A scale-only log: the motion is the scale's, which is the position
+    // channel's output; the reference stands in (`input` holds it when
+    // logged).
+    let from_reference = c == POSITION && !s.encoder;
+    OwnOutputFree {
+        v: if from_reference { s.v_ref.clone() } else { s.v.clone() },
+        a: if from_reference { s.a_ref.clone() } else { s.a.clone() },
+        x: if from_reference { s.input.clone() } else { s.x.clone() },
+        current: if torque { vec![0.0; n] } else { s.iq.clone() },
+        gain: if torque { nominal_torque } else { s.iq.clone() },
+    }
 }
 
 /// Bins of the nonparametric input regression (equal counts).
@@ -242,11 +283,20 @@ pub fn binned_inputs(segs: &[&Segment], rem: &Remainder, c: usize) -> Vec<(Strin
         (Some(y), Some(r)) => y[i] - r[i],
         _ => 0.0,
     };
+    let free: Vec<OwnOutputFree> = segs.iter().map(|s| own_output_free(s, c)).collect();
+    let at = |s: &Segment| {
+        segs.iter()
+            .position(|x| std::ptr::eq(*x, s))
+            .expect("a segment of this list")
+    };
     let mut out = vec![
-        ("speed".to_string(), binned_cv(segs, rem, c, &|s, i| s.v[i])),
+        (
+            "speed".to_string(),
+            binned_cv(segs, rem, c, &|s, i| free[at(s)].v[i]),
+        ),
         (
             "acceleration".to_string(),
-            binned_cv(segs, rem, c, &|s, i| s.a[i]),
+            binned_cv(segs, rem, c, &|s, i| free[at(s)].a[i]),
         ),
         (
             "nominal prediction".to_string(),
@@ -254,7 +304,7 @@ pub fn binned_inputs(segs: &[&Segment], rem: &Remainder, c: usize) -> Vec<(Strin
         ),
         (
             "position".to_string(),
-            binned_cv(segs, rem, c, &|s, i| s.x[i]),
+            binned_cv(segs, rem, c, &|s, i| free[at(s)].x[i]),
         ),
     ];
     if c != TORQUE {

@@ -4,7 +4,7 @@
 
 use super::{build_segments, Nominal, Segment, POSITION, TORQUE};
 use crate::diagnose::log::Log;
-use anyhow::Result;
+use anyhow::{bail, Result};
 
 /// Nominal regression: `current ≈ Σ a_j f_j`, `tracking error ≈ Σ b_j g_j`.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -31,7 +31,7 @@ pub const REG_FEATURES: [&str; 10] = [
 ];
 pub const NREG: usize = REG_FEATURES.len();
 
-pub(super) fn reg_features(seg: &Segment, i: usize, f: f64, v_eps: f64) -> [f64; NREG] {
+pub fn reg_features(seg: &Segment, i: usize, f: f64, v_eps: f64) -> [f64; NREG] {
     let v = seg.v_ref[i];
     let lag = |k: usize| seg.v_ref[i.saturating_sub(k)];
     let s = (v / v_eps).tanh();
@@ -49,27 +49,68 @@ pub(super) fn reg_features(seg: &Segment, i: usize, f: f64, v_eps: f64) -> [f64;
     ]
 }
 
-/// Fits the regression nominal on reference segments (built with a zero
-/// regression, which leaves the kinematics intact).
+/// A reference must hold at least this many samples per regressor to fit
+/// the nominal (after the filter edges): a least-squares fit of `NREG`
+/// coefficients on fewer is an interpolation, not a model.
+pub const MIN_SAMPLES_PER_REGRESSOR: usize = 20;
+
+/// Fits the regression nominal on a healthy reference log. Refuses a
+/// reference too short to fit it (fewer than `MIN_SAMPLES_PER_REGRESSOR`
+/// × `NREG` samples) or one that never reverses (the direction terms
+/// `sgn v`, `F·sgn v` need both directions), naming the minimum.
 pub fn fit_regression(log: &Log) -> Result<Regression> {
-    let zero = Regression {
+    let segs = build_segments(log, &Nominal::Regression(zero_regression()), 0.0)?;
+    let refs: Vec<&Segment> = segs.iter().collect();
+    let n: usize = refs.iter().map(|s| s.len()).sum();
+    let min = MIN_SAMPLES_PER_REGRESSOR * NREG;
+    if n < min {
+        bail!(
+            "{}: the reference is too short to fit the nominal: {n} usable samples (after the ±{} filter-edge samples of each run), fewer than the minimum {min} ({MIN_SAMPLES_PER_REGRESSOR} per regressor × {NREG} regressors); give a longer healthy run",
+            log.source,
+            refs.first().map_or(0, |s| s.sg_m)
+        );
+    }
+    let vmax = refs
+        .iter()
+        .flat_map(|s| s.v_ref.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let (pos, neg) = refs.iter().flat_map(|s| s.v_ref.iter()).fold((0, 0), |(p, q), v| {
+        (p + usize::from(*v > 0.05 * vmax), q + usize::from(*v < -0.05 * vmax))
+    });
+    if vmax <= 0.0 || pos == 0 || neg == 0 {
+        bail!(
+            "{}: the reference never reverses ({pos} samples moving +, {neg} moving − beyond 5 % of the peak speed {vmax:.3e} m/s): the nominal's direction terms (sgn v, F·sgn v) need motion both ways, at least one reversal; give a healthy run that moves both ways",
+            log.source
+        );
+    }
+    Ok(fit_regression_segments(&refs))
+}
+
+/// A regression that predicts nothing (segments built with it keep the
+/// kinematics and carry the logged signals as residuals).
+pub fn zero_regression() -> Regression {
+    Regression {
         v_eps: 1e-3,
         torque_coef: vec![0.0; NREG],
         position_coef: vec![0.0; NREG],
-    };
-    let segs = build_segments(log, &Nominal::Regression(zero.clone()), 0.0)?;
+    }
+}
+
+/// Fits the regression nominal on segments built with `zero_regression`.
+pub fn fit_regression_segments(segs: &[&Segment]) -> Regression {
     let vmax = segs
         .iter()
         .flat_map(|s| s.v_ref.iter())
         .fold(0.0f64, |m, v| m.max(v.abs()));
     let v_eps = (0.05 * vmax).max(1e-6);
-    let solve = |ch: usize, feats: &dyn Fn(&Segment, usize) -> Vec<f64>, p: usize| -> Vec<f64> {
+    let solve = |ch: usize| -> Vec<f64> {
+        let p = NREG;
         let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
         let mut atb = nalgebra::DVector::<f64>::zeros(p);
-        for s in &segs {
+        for s in segs {
             let Some(y) = &s.y[ch] else { continue };
             for (i, yi) in y.iter().enumerate() {
-                let f = feats(s, i);
+                let f = reg_features(s, i, s.f_load[i], v_eps);
                 for a in 0..p {
                     atb[a] += f[a] * yi;
                     for b in 0..p {
@@ -83,20 +124,43 @@ pub fn fit_regression(log: &Log) -> Result<Regression> {
             .map(|v| v.iter().copied().collect())
             .unwrap_or_else(|_| vec![0.0; p])
     };
-    let fext = |s: &Segment, i: usize| s.f_load[i];
-    let tc = solve(
-        TORQUE,
-        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
-        NREG,
-    );
-    let pc = solve(
-        POSITION,
-        &|s, i| reg_features(s, i, fext(s, i), v_eps).to_vec(),
-        NREG,
-    );
-    Ok(Regression {
+    Regression {
         v_eps,
-        torque_coef: tc,
-        position_coef: pc,
+        torque_coef: solve(TORQUE),
+        position_coef: solve(POSITION),
+    }
+}
+
+/// Fit % (`100 (1 − ‖y − ŷ‖/‖y − ȳ‖)`) of the current and tracking-error
+/// channels of segments built with `zero_regression`, under `reg`.
+pub fn regression_fit_pct(reg: &Regression, segs: &[&Segment]) -> [Option<f64>; 2] {
+    std::array::from_fn(|k| {
+        let (ch, coef) = if k == 0 {
+            (TORQUE, &reg.torque_coef)
+        } else {
+            (POSITION, &reg.position_coef)
+        };
+        let (mut sy, mut n) = (0.0, 0usize);
+        for s in segs {
+            if let Some(y) = &s.y[ch] {
+                sy += y.iter().sum::<f64>();
+                n += y.len();
+            }
+        }
+        if n == 0 {
+            return None;
+        }
+        let mean = sy / n as f64;
+        let (mut sr, mut st) = (0.0, 0.0);
+        for s in segs {
+            let Some(y) = &s.y[ch] else { continue };
+            for (i, yi) in y.iter().enumerate() {
+                let f = reg_features(s, i, s.f_load[i], reg.v_eps);
+                let yh: f64 = f.iter().zip(coef).map(|(a, b)| a * b).sum();
+                sr += (yi - yh).powi(2);
+                st += (yi - mean).powi(2);
+            }
+        }
+        (st > 0.0).then(|| 100.0 * (1.0 - (sr / st).sqrt()))
     })
 }

@@ -1,0 +1,309 @@
+//! Large gaps against a sound reference (physics rig file, or a healthy
+//! reference log): unmeasured forces from 0.2× to 5× the RMS of the force
+//! the motion needs — events on their own clock, events synchronised with
+//! the motion, single long steps — a wrong rig file alone and with force
+//! events, and training = reference with a held-out log carrying events.
+//! Scored: the verdict's kind, the force's level and event times against
+//! the truth, the primary-channel shrink, and the wrong parameter among
+//! the re-fitted ones.
+//!
+//! CI runs `gap_smoke` (3 cases). The benchmark writes
+//! `target/diagnose_suite/gap/{suite.json,report.md}`:
+//! `cargo test --release --test diagnose_gap -- --ignored --nocapture`
+//! (`DIAGNOSE_GAP_SET=tuning|holdout` runs one set only).
+
+mod diagnose_support;
+
+use diagnose_support::gap::{force_logs, nominal_pair, wrong_rig, GapLogs, Timing, WrongParam};
+use diagnose_support::truth::nominal_rig;
+use host_sim::diagnose::disturbance::DisturbanceFit;
+use host_sim::diagnose::residual::{fit_regression, Nominal, Physics};
+use host_sim::diagnose::{diagnose_with, Diagnosis, Options};
+use std::fmt::Write as _;
+
+#[derive(Clone, Copy, Debug)]
+enum Spec {
+    Force(Timing, u64),
+    WrongRig(WrongParam, u64),
+    WrongRigForce(WrongParam, u64),
+    TrainingIsReference(u64),
+}
+
+#[derive(Debug, Default, serde::Serialize)]
+struct Outcome {
+    case: String,
+    family: &'static str,
+    seed: u64,
+    verdict: String,
+    headline: String,
+    explained_pct: f64,
+    /// Force truths: size factor, true level (N), the estimated event
+    /// level (median over events, N) and its error, the median timing
+    /// error of the event edges (ms), the disturbance's primary shrink.
+    factor: Option<f64>,
+    level_true_n: Option<f64>,
+    level_est_n: Option<f64>,
+    level_err_pct: Option<f64>,
+    timing_err_ms: Option<f64>,
+    edges_within_5ms_pct: Option<f64>,
+    disturbance_primary_pct: Option<f64>,
+    train_fit_torque_pct: Option<f64>,
+    /// Wrong-rig truths: the parameter and its factor, the re-fitted
+    /// parameters beyond tolerance, whether the wrong one is among them.
+    wrong_param: Option<String>,
+    wrong_factor: Option<f64>,
+    refitted: Vec<String>,
+    wrong_param_refitted: Option<bool>,
+    refit_primary_pct: Option<f64>,
+    disturbance_locked: Option<bool>,
+    gates: Vec<String>,
+    wall_s: f64,
+}
+
+/// The estimated level of each true event (level at its middle minus the
+/// level just before it) and the timing error of each true edge against
+/// the nearest change point, from the disturbance's intervals.
+fn score_events(d: &DisturbanceFit, events: &[[f64; 3]]) -> (Option<f64>, Option<f64>, Option<f64>) {
+    if !d.level_unit.starts_with('N') || d.intervals.is_empty() {
+        return (None, None, None);
+    }
+    let at = |t: f64| {
+        d.intervals
+            .iter()
+            .find(|iv| iv.start_s <= t && t < iv.end_s)
+            .map(|iv| iv.level)
+    };
+    let mut est: Vec<f64> = events
+        .iter()
+        .filter_map(|e| {
+            let mid = 0.5 * (e[0] + e[1]);
+            let before = (e[0] - 0.1).max(0.0);
+            Some(at(mid)? - at(before)?)
+        })
+        .collect();
+    est.sort_by(f64::total_cmp);
+    let level = est.get(est.len() / 2).copied();
+    let cps: Vec<f64> = d.intervals.iter().skip(1).map(|iv| iv.start_s).collect();
+    let mut errs: Vec<f64> = events
+        .iter()
+        .flat_map(|e| [e[0], e[1]])
+        .filter(|t| *t < 7.95)
+        .map(|t| cps.iter().map(|c| (c - t).abs()).fold(f64::INFINITY, f64::min) * 1e3)
+        .collect();
+    errs.sort_by(f64::total_cmp);
+    let within = if errs.is_empty() {
+        None
+    } else {
+        Some(100.0 * errs.iter().filter(|e| **e <= 5.0).count() as f64 / errs.len() as f64)
+    };
+    (level, errs.get(errs.len() / 2).copied(), within)
+}
+
+fn physics(rig: &host_sim::config::RigConfig) -> Nominal {
+    Nominal::Physics(Physics::from_rig(rig))
+}
+
+fn run_case(spec: Spec) -> Outcome {
+    let t0 = std::time::Instant::now();
+    let rig = nominal_rig();
+    let tilt = Physics::from_rig(&rig).tilt_deg;
+    let opts = Options::default();
+    let mut o = Outcome::default();
+    let force_outcome = |o: &mut Outcome, d: &Diagnosis, g: &GapLogs| {
+        let s = &d.summary;
+        let dist = if s.verdict.explained_by.starts_with("re-fitted nominal +") {
+            s.refit_disturbance.as_ref()
+        } else {
+            s.disturbance.as_ref()
+        };
+        let truth = g.events.first().map_or(0.0, |e| e[2]);
+        o.factor = Some(g.factor);
+        o.level_true_n = Some(truth);
+        if let Some(d) = dist {
+            let (lv, te, w5) = score_events(d, &g.events);
+            o.level_est_n = lv;
+            o.level_err_pct = lv.map(|l| 100.0 * (l - truth).abs() / truth.abs());
+            o.timing_err_ms = te;
+            o.edges_within_5ms_pct = w5;
+            o.disturbance_primary_pct = Some(d.primary_shrink_pct);
+            o.disturbance_locked = Some(d.locked_to_signals);
+        }
+        o.train_fit_torque_pct = s.channels.iter().find(|c| c.channel == "torque").map(|c| c.fit_train_pct);
+    };
+    let d = match spec {
+        Spec::Force(timing, seed) => {
+            let g = force_logs(&rig, timing, None, seed);
+            let d = diagnose_with(&g.train, Some(&g.held), None, physics(&rig), tilt, &opts).expect("diagnosis");
+            o.case = format!("force {timing:?}");
+            o.family = "force";
+            o.seed = seed;
+            force_outcome(&mut o, &d, &g);
+            d
+        }
+        Spec::WrongRig(which, seed) | Spec::WrongRigForce(which, seed) => {
+            let (file, f) = wrong_rig(&rig, which, seed);
+            let with_force = matches!(spec, Spec::WrongRigForce(..));
+            let (d, g) = if with_force {
+                let g = force_logs(&rig, Timing::Free, Some(1.0 + 2.0 * ((seed % 7) as f64 / 6.0)), seed);
+                (diagnose_with(&g.train, Some(&g.held), None, physics(&file), tilt, &opts).expect("diagnosis"), Some(g))
+            } else {
+                let (tr, he) = nominal_pair(&rig, seed);
+                (diagnose_with(&tr, Some(&he), None, physics(&file), tilt, &opts).expect("diagnosis"), None)
+            };
+            o.case = format!("wrong rig file: {which:?}{}", if with_force { " + force events" } else { "" });
+            o.family = if with_force { "wrong_rig_force" } else { "wrong_rig" };
+            o.seed = seed;
+            o.wrong_param = Some(format!("{which:?}"));
+            o.wrong_factor = Some(f);
+            let r = d.summary.refit.as_ref();
+            o.refitted = r.map_or(Vec::new(), |r| r.changed.clone());
+            o.wrong_param_refitted = Some(o.refitted.iter().any(|p| which.refit_names().iter().any(|n| p.starts_with(n))));
+            o.refit_primary_pct = r.map(|r| r.primary_shrink_pct);
+            if let Some(g) = &g {
+                force_outcome(&mut o, &d, g);
+            }
+            d
+        }
+        Spec::TrainingIsReference(seed) => {
+            let (reference, _) = nominal_pair(&rig, seed);
+            let g = force_logs(&rig, Timing::Free, Some(1.0 + 2.0 * ((seed % 5) as f64 / 4.0)), seed);
+            let reg = fit_regression(&reference).expect("regression");
+            let d = diagnose_with(&reference, Some(&g.held), Some(&reference), Nominal::Regression(reg), tilt, &opts).expect("diagnosis");
+            o.case = "training = reference, held-out log with force events".into();
+            o.family = "training_is_reference";
+            o.seed = seed;
+            o.factor = Some(g.factor);
+            o.disturbance_primary_pct = d.summary.disturbance.as_ref().map(|x| x.primary_shrink_pct);
+            o.disturbance_locked = d.summary.disturbance.as_ref().map(|x| x.locked_to_signals);
+            d
+        }
+    };
+    let s = &d.summary;
+    o.verdict = s.verdict.kind.clone();
+    o.headline = s.verdict.headline.clone();
+    o.explained_pct = s.verdict.explained_pct;
+    o.gates = s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect();
+    o.wall_s = t0.elapsed().as_secs_f64();
+    o
+}
+
+fn pct(a: usize, b: usize) -> f64 {
+    if b == 0 {
+        f64::NAN
+    } else {
+        100.0 * a as f64 / b as f64
+    }
+}
+
+fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, String) {
+    let fam = |f: &str| out.iter().filter(|o| o.family == f).collect::<Vec<_>>();
+    let force = fam("force");
+    let n_f = force.len();
+    let dist = force.iter().filter(|o| o.verdict == "disturbance").count();
+    let lvl = force.iter().filter(|o| o.level_err_pct.is_some_and(|e| e <= 20.0)).count();
+    let tim = force.iter().filter(|o| o.timing_err_ms.is_some_and(|e| e <= 5.0)).count();
+    let shr = force.iter().filter(|o| o.verdict == "disturbance" && o.explained_pct >= 70.0).count();
+    let neg_fit = force.iter().filter(|o| o.train_fit_torque_pct.is_some_and(|f| f < 0.0)).count();
+    let wr = fam("wrong_rig");
+    let wr_ok = wr.iter().filter(|o| o.verdict == "rig_mismatch" && o.wrong_param_refitted == Some(true)).count();
+    let wrf = fam("wrong_rig_force");
+    let wrf_ok = wrf.iter().filter(|o| matches!(o.verdict.as_str(), "rig_mismatch" | "disturbance") && o.wrong_param_refitted == Some(true) && o.explained_pct >= 66.7).count();
+    let tr = fam("training_is_reference");
+    let tr_ok = tr.iter().filter(|o| o.verdict == "disturbance").count();
+    let wrong_lib = out.iter().filter(|o| matches!(o.verdict.as_str(), "library_effect" | "library_group")).count();
+    let by_timing = |t: &str| {
+        let v: Vec<&&Outcome> = force.iter().filter(|o| o.case.ends_with(t)).collect();
+        format!("{}/{}", v.iter().filter(|o| o.verdict == "disturbance").count(), v.len())
+    };
+    let figures = serde_json::json!({
+        "cases": out.len(),
+        "force_cases": n_f,
+        "force_verdict_disturbance_pct": pct(dist, n_f),
+        "force_verdict_disturbance_by_timing": {"free": by_timing("Free"), "synced": by_timing("Synced"), "long_step": by_timing("LongStep")},
+        "force_level_within_20pct_pct": pct(lvl, n_f),
+        "force_event_times_within_5ms_pct": pct(tim, n_f),
+        "force_primary_shrink_ge_70_pct": pct(shr, n_f),
+        "force_cases_training_fit_below_zero": neg_fit,
+        "wrong_rig_cases": wr.len(),
+        "wrong_rig_verdict_rig_mismatch_with_param_pct": pct(wr_ok, wr.len()),
+        "wrong_rig_force_cases": wrf.len(),
+        "wrong_rig_force_both_found_pct": pct(wrf_ok, wrf.len()),
+        "training_is_reference_cases": tr.len(),
+        "training_is_reference_disturbance_pct": pct(tr_ok, tr.len()),
+        "wrong_library_effect_named_pct": pct(wrong_lib, out.len()),
+        "wall_s": wall_s,
+        "outcomes": out,
+    });
+    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f}; training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), out.len());
+    let _ = writeln!(rep, "| case | seed | verdict | explained % | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
+    let f1 = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.1}"));
+    for o in out {
+        let _ = writeln!(
+            rep,
+            "| {} | {} | {} | {:.1} | {} | {} / {} ({}) | {} ({}) | {} | {} | {} | {} |",
+            o.case, o.seed, o.verdict, o.explained_pct, f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
+            f1(o.timing_err_ms), f1(o.edges_within_5ms_pct), f1(o.train_fit_torque_pct), o.refitted.join("; "),
+            o.disturbance_locked.map_or("–", |b| if b { "yes" } else { "no" }), o.gates.join(", ")
+        );
+    }
+    (figures, rep)
+}
+
+fn write(dir_name: &str, figures: &serde_json::Value, rep: &str) {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite").join(dir_name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("report.md"), rep).unwrap();
+    std::fs::write(dir.join("suite.json"), serde_json::to_string_pretty(figures).unwrap()).unwrap();
+    println!("{rep}");
+}
+
+/// One set of cases from seed `base`: `n` of each force timing, `n` of
+/// each wrong parameter alone and with force events, `n` training =
+/// reference.
+fn specs(base: u64, n: u64) -> Vec<Spec> {
+    let mut v = Vec::new();
+    for k in 0..n {
+        let s = base + k;
+        for t in [Timing::Free, Timing::Synced, Timing::LongStep] {
+            v.push(Spec::Force(t, s));
+        }
+        for w in [WrongParam::Payload, WrongParam::Flux] {
+            v.push(Spec::WrongRig(w, s));
+            v.push(Spec::WrongRigForce(w, s));
+        }
+        v.push(Spec::TrainingIsReference(s));
+    }
+    v
+}
+
+/// Seeds the method was developed on.
+const TUNING_SEED_BASE: u64 = 0;
+/// Held-out seeds: drawn after the method was fixed, run once.
+const HOLDOUT_SEED_BASE: u64 = 1000;
+
+#[test]
+#[ignore = "large-gap benchmark (≈ 2–6 min): cargo test --release --test diagnose_gap -- --ignored --nocapture"]
+fn gap_suite() {
+    let set = std::env::var("DIAGNOSE_GAP_SET").unwrap_or_default();
+    let n: u64 = std::env::var("DIAGNOSE_GAP_N").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
+    let t0 = std::time::Instant::now();
+    let mut figures = serde_json::json!({});
+    let mut rep = String::new();
+    for (key, base, title) in [
+        ("tuning", TUNING_SEED_BASE, "Large-gap suite, tuning seeds (from 0; the method was developed on them)"),
+        ("holdout", HOLDOUT_SEED_BASE, "Large-gap suite, held-out seeds (from 1000; run once after the method was fixed)"),
+    ] {
+        if !set.is_empty() && set != key {
+            continue;
+        }
+        let t = std::time::Instant::now();
+        let out: Vec<Outcome> = specs(base, n).into_iter().map(run_case).collect();
+        let (f, r) = summarize(&out, title, t.elapsed().as_secs_f64());
+        figures[key] = f;
+        figures[format!("{key}_seed_base")] = base.into();
+        rep.push_str(&r);
+        rep.push('\n');
+    }
+    figures["total_wall_s"] = t0.elapsed().as_secs_f64().into();
+    write("gap", &figures, &rep);
+}
