@@ -327,6 +327,9 @@ impl Controller {
         if !(position_m.is_finite() && velocity_m_s.is_finite() && force_n.is_finite()) {
             return Err(CommandError::NotFinite);
         }
+        if force_n.abs() > self.params.thrust_peak_n() {
+            return Err(CommandError::OutOfRange);
+        }
         if !self.readiness.contains(Readiness::COMMUTATED) {
             return Err(CommandError::NotCommutated);
         }

@@ -406,6 +406,11 @@ impl Controller {
         self.move_lag_s = 0.0;
     }
 
+    /// The power stage's last measured temperature, °C.
+    pub fn power_stage_temperature_c(&self) -> Option<f32> {
+        self.power_stage_temperature_c
+    }
+
     /// Normalised winding temperature of the I²t model (1 = continuous rating).
     pub fn thermal_level(&self) -> f32 {
         self.thermal.level()

@@ -343,6 +343,12 @@ impl ControlParams {
         1.5 * self.motor.pole_pairs as f32 * self.motor.flux_linkage_wb
     }
 
+    /// The rod force the motor's peak current rating gives, N (forward
+    /// efficiency): the largest force a stream may ask to feed forward.
+    pub fn thrust_peak_n(&self) -> f32 {
+        self.torque_constant_n_m_a() * self.ratings.motor_peak_current_a * self.drive_train.screw_efficiency / self.metres_per_rad()
+    }
+
     pub fn pwm_period_s(&self) -> f32 {
         1.0 / self.rates.pwm_frequency_hz
     }
