@@ -150,8 +150,8 @@ pub struct Commutation {
     hold_a: f32,
     hold_angle_rad: f32,
     ratio: f32,
-    /// Dither: samples per period, samples since it started and since the
-    /// present stage started, and the present stage's position sum
+    /// Dither: samples per period, the present sample within its period,
+    /// samples since the present stage started, and the present stage's position sum
     /// (counts from `x0`).
     dither_samples: u32,
     dither_k: u32,
@@ -357,9 +357,11 @@ impl Commutation {
         let c = &p.commutation;
         let n = self.dither_samples;
         let dithering = !matches!(stage, ProbeStage::PreOut | ProbeStage::PreSettle);
-        let (sin_d, _) = sincos(2.0 * PI * (self.dither_k % n) as f32 / n as f32);
+        let (sin_d, _) = sincos(2.0 * PI * self.dither_k as f32 / n as f32);
         if dithering {
-            self.dither_k = self.dither_k.wrapping_add(1);
+            // The swing's sample within its period, wrapped without a division.
+            let next = self.dither_k.saturating_add(1);
+            self.dither_k = if next >= n { 0 } else { next };
         }
         let k = self.stage_k;
         self.stage_k = self.stage_k.saturating_add(1);
@@ -405,15 +407,17 @@ impl Commutation {
         };
         // After settling, the mean over whole dither periods (any n
         // consecutive samples of the swing sum to zero).
-        let wait = DITHER_SETTLE_PERIODS * n;
+        let wait = DITHER_SETTLE_PERIODS.saturating_mul(n);
         if k < wait {
             self.mean_sum = 0.0;
             return;
         }
         self.mean_sum += s.position_counts - self.x0_counts;
-        let taken = k + 1 - wait;
-        if taken >= DITHER_MEAN_PERIODS * n {
-            self.means[slot] = self.mean_sum / taken as f32;
+        let taken = k.saturating_sub(wait).saturating_add(1);
+        if taken >= DITHER_MEAN_PERIODS.saturating_mul(n) {
+            if let Some(m) = self.means.get_mut(slot) {
+                *m = self.mean_sum / taken as f32;
+            }
             self.mean_sum = 0.0;
             match stage {
                 ProbeStage::Out => self.enter(Phase::Probe(ProbeStage::MoveBack)),
