@@ -25,7 +25,6 @@
 #![no_main]
 
 mod board;
-mod can_stream;
 mod hal_log;
 mod masking;
 
@@ -43,7 +42,7 @@ use hal_log::{CanFault, UsartFault};
 use hw::comms::{self, FlashStore};
 use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
-use can_stream::CanStream;
+use hw::can_stream::CanStream;
 use servo_core::protocol::{self as proto, DriveFrame, FrameReader, ParamStore, Server};
 use servo_core::{Command, Controller, FaultSet, Mode};
 

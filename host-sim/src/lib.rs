@@ -13,6 +13,7 @@ pub mod plant;
 pub mod platform;
 pub mod power_up;
 pub mod report;
+pub mod rigs;
 pub mod scenario;
 pub mod sim;
 pub mod tool;

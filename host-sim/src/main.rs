@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use rayon::prelude::*;
 use host_sim::config::RigConfig;
 use host_sim::report::{self, csv_out, metrics, plots};
+use host_sim::rigs::FamilySpec;
 use host_sim::scenario::dataset::{self, DatasetSpec};
 use host_sim::scenario::{run_stroke_cycle, StrokeCycle};
 use std::path::PathBuf;
@@ -35,6 +36,10 @@ enum Cmd {
         /// compensation on, and report before/after.
         #[arg(long)]
         observer: bool,
+        /// Run on every rig of a family (`host-sim rigs`) instead: a row
+        /// per rig and the worst case in summary.json, family.md.
+        #[arg(long, conflicts_with_all = ["params", "observer"])]
+        family: Option<PathBuf>,
     },
     /// Fault injection: every scenario of docs/reliability.md, closed loop.
     /// Writes summary.json, reliability_measured.md and a trace per scenario.
@@ -43,6 +48,9 @@ enum Cmd {
         out: PathBuf,
         #[arg(long)]
         params: Option<PathBuf>,
+        /// Every scenario on every rig of a family (`host-sim rigs`).
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
     /// Train the IBAS-BPNN error observer (paper §4.1) on a dataset and write
     /// the firmware's model source. Writes summary.json, model.json, model.rs
@@ -67,23 +75,26 @@ enum Cmd {
         homings: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// The same cases on every rig of a family (`host-sim rigs`); no homings.
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
     Train(host_sim::trainer::TrainArgs),
-    /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
+    /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
-    /// The drive protocol (issue 11): `drive serve` runs a simulated drive on
+    /// The drive protocol: `drive serve` runs a simulated drive on
     /// a TCP socket; the other subcommands are the host tool, talking to a
     /// board (--port) or a simulated drive (--tcp). docs/host-tool.md.
     Drive(host_sim::tool::DriveArgs),
-    /// Tuning from identification (issue 11 items 7-8): identify inertia,
+    /// Tuning from identification: identify inertia,
     /// friction, R and L from captures; propose gains for asked bandwidths
     /// and phase margin; check them on the simulator. docs/tuning.md.
     Tune(host_sim::tuning::cli::TuneArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
-    /// The 6-DOF platform (issue 12): kinematics along pose trajectories,
+    /// The 6-DOF platform: kinematics along pose trajectories,
     /// leg forces, the Table 4 reproduction. Writes summary.json,
     /// table4.md, geometry.png and per-trajectory plots.
     Platform {
@@ -96,6 +107,11 @@ enum Cmd {
         #[arg(long)]
         params: Option<PathBuf>,
     },
+    /// A family of rigs a second unit of the cylinder could be, drawn from
+    /// a rig file within stated tolerances: DIR/rig_NNN.toml, the five
+    /// corners (softer, stiffer, heavier, more friction, combined) and
+    /// DIR/family.json. Every suite takes one with --family DIR.
+    Rigs(RigsArgs),
     Dataset {
         #[arg(long)]
         out: PathBuf,
@@ -112,17 +128,103 @@ enum Cmd {
     },
 }
 
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+struct RigsArgs {
+    /// Output folder (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Drawn rigs (the corners come on top).
+    #[arg(long)]
+    count: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Base rig file; default: the shipped nominal rig.
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Leave out the five corner rigs.
+    #[arg(long)]
+    no_corners: bool,
+    /// Structure stiffness, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().stiffness_tol)]
+    stiffness_tol: f64,
+    /// Coulomb friction, viscous friction and the screw's friction coefficient, each ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().friction_tol)]
+    friction_tol: f64,
+    /// Payload range, fractions of the base (rated) payload.
+    #[arg(long, default_value_t = FamilySpec::default().payload_min)]
+    payload_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().payload_max)]
+    payload_max: f64,
+    /// Rotor, coupling and screw inertia, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().inertia_tol)]
+    inertia_tol: f64,
+    /// Winding resistance factor range (cold to hot).
+    #[arg(long, default_value_t = FamilySpec::default().resistance_min)]
+    resistance_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().resistance_max)]
+    resistance_max: f64,
+    /// d/q inductance, ± fraction.
+    #[arg(long, default_value_t = FamilySpec::default().inductance_tol)]
+    inductance_tol: f64,
+    /// Magnet flux factor range.
+    #[arg(long, default_value_t = FamilySpec::default().flux_min)]
+    flux_min: f64,
+    #[arg(long, default_value_t = FamilySpec::default().flux_max)]
+    flux_max: f64,
+    /// Cumulative lead error bound, m/m (default: C7, 52 µm over 300 mm).
+    #[arg(long, default_value_t = FamilySpec::default().lead_error_max)]
+    lead_error_max: f64,
+}
+
+fn rigs(a: RigsArgs) -> Result<()> {
+    let spec = FamilySpec {
+        stiffness_tol: a.stiffness_tol,
+        friction_tol: a.friction_tol,
+        payload_min: a.payload_min,
+        payload_max: a.payload_max,
+        inertia_tol: a.inertia_tol,
+        resistance_min: a.resistance_min,
+        resistance_max: a.resistance_max,
+        inductance_tol: a.inductance_tol,
+        flux_min: a.flux_min,
+        flux_max: a.flux_max,
+        lead_error_max: a.lead_error_max,
+    };
+    let (text, origin) = match &a.params {
+        Some(p) => (std::fs::read_to_string(p).with_context(|| format!("reading rig file {}", p.display()))?, p.display().to_string()),
+        None => (host_sim::config::DEFAULT_RIG_TOML.to_string(), "params/rig.toml".to_string()),
+    };
+    let list = host_sim::rigs::write_family(&text, &origin, &spec, a.count, a.seed, !a.no_corners, &a.out)?;
+    println!("wrote {} rig files and family.json to {}", list.len(), a.out.display());
+    Ok(())
+}
+
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::Paper { out, params, seed, observer } => paper(out, params, seed, observer),
-        Cmd::Faults { out, params } => {
+        Cmd::Paper { out, family: Some(dir), seed, .. } => {
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, &out)?, &out)
+        }
+        Cmd::Paper { out, params, seed, observer, family: None } => paper(out, params, seed, observer),
+        Cmd::Faults { out, family: Some(dir), .. } => {
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            family_done(host_sim::fault_injection::family::run_family(&rigs, &dir, &out)?, &out)
+        }
+        Cmd::PowerUp { out, family: Some(dir), power_ups, rod_min_m, rod_max_m, seed, .. } => {
+            check_rod_range(rod_min_m, rod_max_m)?;
+            let rigs = host_sim::rigs::load_family(&dir)?;
+            let s = host_sim::power_up::family::run_family(&rigs, &dir, power_ups, (rod_min_m, rod_max_m), seed, &out)?;
+            family_done(s, &out)
+        }
+        Cmd::Faults { out, params, family: None } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
             let rows = host_sim::fault_injection::report::run_catalog(&rig, &out)?;
             print!("{}", host_sim::fault_injection::report::markdown_table(&rows));
             println!("{} of {} scenarios meet their requirement", rows.iter().filter(|r| r.passed).count(), rows.len());
             Ok(())
         }
-        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed } => {
+        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed, family: None } => {
             power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
@@ -141,6 +243,7 @@ fn main() -> Result<()> {
             println!("wrote {}/{{summary.json, table4.md, geometry.png, *_pose_*.png, *_leg_*.png}}", out.display());
             Ok(())
         }
+        Cmd::Rigs(a) => rigs(a),
         Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
             dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
         }
@@ -211,9 +314,7 @@ fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64, observer: bool) -> Re
 fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64) -> Result<()> {
     use host_sim::power_up;
     let (lo, hi) = rod_m;
-    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 0.5) {
-        anyhow::bail!("--rod-min-m / --rod-max-m: need 0 <= min < max <= 0.5 (the stroke), got {lo} / {hi}");
-    }
+    check_rod_range(lo, hi)?;
     let rig = RigConfig::load_or_nominal(params.as_ref())?;
     let t0 = std::time::Instant::now();
     let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
@@ -228,5 +329,24 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     }
     println!("{}", serde_json::to_string_pretty(&brief)?);
     print!("{}", std::fs::read_to_string(out.join("cases.md"))?);
+    Ok(())
+}
+
+fn check_rod_range(lo: f64, hi: f64) -> Result<()> {
+    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 0.5) {
+        anyhow::bail!("--rod-min-m / --rod-max-m: need 0 <= min < max <= 0.5 (the stroke), got {lo} / {hi}");
+    }
+    Ok(())
+}
+
+/// Prints a family mode's per-rig table and worst cases; fails when a rig did.
+fn family_done(summary: serde_json::Value, out: &std::path::Path) -> Result<()> {
+    print!("{}", std::fs::read_to_string(out.join("family.md"))?);
+    println!("worst: {}", serde_json::to_string_pretty(&summary["worst"])?);
+    let failed = summary["rigs_failed"].as_array().map_or(0, Vec::len);
+    println!("{} of {} rigs pass; wrote {}/{{summary.json, family.md}} and a folder per rig", summary["rigs_passed"], summary["rigs"], out.display());
+    if failed > 0 {
+        anyhow::bail!("{failed} rig(s) failed: {}", summary["rigs_failed"]);
+    }
     Ok(())
 }

@@ -37,6 +37,23 @@ fn a_collision_starts_a_controlled_stop_against_the_obstacle() {
     assert!(o.rod_range_m.1 < 0.30 + 0.002, "{}", o.brief());
 }
 
+/// A stall is a stall on a stiffer structure and a heavier payload too:
+/// the rotor bounces back off the obstacle there, its back-EMF passing
+/// through zero, which must not read as a slipping rotor with a lost
+/// encoder (bridge off, the rod falling at 0.27 m/s).
+#[test]
+fn a_stall_is_a_controlled_stop_on_the_family_corners() {
+    let base = rig();
+    for (name, draw) in host_sim::rigs::Draw::corners(&host_sim::rigs::FamilySpec::default()) {
+        let r = draw.apply(&base);
+        let o = host_sim::fault_injection::run(&catalog::stall(&r)).unwrap();
+        let e = &catalog::stall(&r).expect;
+        assert!(o.violations(e).is_empty(), "{name}: {:?}\n{}", o.violations(e), o.brief());
+        let v = o.rod_speed_after_latch_max_m_s.unwrap();
+        assert!(v <= catalog::STALL_ROD_SPEED_MAX_M_S, "{name}: {v} m/s");
+    }
+}
+
 /// I²t with the winding time constant shortened to 1 s and 1.5× the
 /// continuous current needed: the current limit folds back, the load can
 /// no longer be held, and a following error starts a controlled stop. The

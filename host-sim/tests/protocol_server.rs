@@ -186,21 +186,23 @@ fn save_load_defaults_refused_with_the_bridge_on_and_a_bad_record_never_applied(
     let r = ask(&mut srv, &mut d, &mut s, Request::Load);
     assert!(matches!(&r, Some(Reply::Loaded { from_flash: true, .. })), "{r:?}");
     assert_eq!(d.params.speed_pi.kp, 0.8);
-    // Corrupted: defaults, and the reply says why.
+    // Corrupted: refused, saying why, and the live set (with its unsaved
+    // gain) untouched.
+    d.params.speed_pi.kp = 0.9;
     let mid = s.record.len() / 2;
     s.record[mid] ^= 4;
-    let r = ask(&mut srv, &mut d, &mut s, Request::Load);
-    println!("{r:?}");
-    assert!(matches!(&r, Some(Reply::Loaded { from_flash: false, note }) if note.contains("CRC") && note.contains("defaults")), "{r:?}");
-    assert_eq!(d.params.speed_pi.kp, ControlParams::DEFAULT.speed_pi.kp);
-    // Nothing stored, a failing flash.
+    let r = param_error(ask(&mut srv, &mut d, &mut s, Request::Load));
+    assert!(matches!(&r, Error::Storage { reason } if reason.contains("CRC")), "{r:?}");
+    assert_eq!(d.params.speed_pi.kp, 0.9, "a bad record must not touch the live set");
+    // Nothing stored, a failing flash: refused too.
     s.record.clear();
-    let r = ask(&mut srv, &mut d, &mut s, Request::Load);
-    assert!(matches!(&r, Some(Reply::Loaded { from_flash: false, note }) if note.contains("no record")), "{r:?}");
+    let r = param_error(ask(&mut srv, &mut d, &mut s, Request::Load));
+    assert!(matches!(&r, Error::Storage { reason } if reason.contains("no record")), "{r:?}");
     s.fail = true;
     assert!(matches!(param_error(ask(&mut srv, &mut d, &mut s, Request::Save)), Error::Storage { .. }));
-    let r = ask(&mut srv, &mut d, &mut s, Request::Load);
-    assert!(matches!(&r, Some(Reply::Loaded { from_flash: false, note }) if note.contains("flash read failed")), "{r:?}");
+    let r = param_error(ask(&mut srv, &mut d, &mut s, Request::Load));
+    assert!(matches!(&r, Error::Storage { reason } if reason.contains("flash read failed")), "{r:?}");
+    assert_eq!(d.params.speed_pi.kp, 0.9);
 }
 
 #[test]
@@ -375,7 +377,11 @@ fn a_set_beyond_the_hardware_rating_is_refused_naming_the_leaf() {
     let (mut d, mut s) = (MockDrive::running(), MemStore::default());
     // A power stage rated below the set's limit; the ask is a valid set
     // (below the trip) that this stage cannot carry.
-    d.hardware_current_max_a = Some(d.params.limits.current_max_a * 0.8);
+    d.rating = Some(servo_core::params::PowerStageRating {
+        bus_max_v: d.params.faults.bus_overvoltage_v,
+        current_max_a: d.params.limits.current_max_a * 0.8,
+        overcurrent_trip_max_a: d.params.faults.overcurrent_trip_a,
+    });
     let i = idx("control.limits.current_max_a");
     let before = (d.params, d.applied);
     let asked = d.params.limits.current_max_a * 0.9;

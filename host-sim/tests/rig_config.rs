@@ -63,3 +63,85 @@ fn a_light_payload_that_needs_more_substeps_loads_and_runs() {
     assert_eq!(rig.plant.substeps(), 2);
     host_sim::plant::Plant::try_new(rig.plant, 1).unwrap_or_else(|e| panic!("{e}"));
 }
+
+mod family {
+    use host_sim::config::{RigConfig, DEFAULT_RIG_TOML};
+    use host_sim::rigs::{load_family, write_family, FamilySpec, C7_LEAD_ERROR_M_PER_M};
+
+    fn within(x: f64, base: f64, lo: f64, hi: f64, what: &str) {
+        let r = x / base;
+        assert!(r >= lo - 1e-12 && r <= hi + 1e-12, "{what}: ×{r} outside [{lo}, {hi}]");
+    }
+
+    #[test]
+    fn a_drawn_family_loads_stays_within_its_tolerances_and_repeats_from_its_seed() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = FamilySpec::default();
+        let list = write_family(DEFAULT_RIG_TOML, "params/rig.toml", &spec, 12, 5, true, dir.path()).unwrap();
+        assert_eq!(list.len(), 17);
+        let rigs = load_family(dir.path()).unwrap();
+        assert_eq!(rigs.len(), 17);
+        let base = RigConfig::nominal().unwrap().plant;
+        for r in &rigs {
+            let p = &r.rig.plant;
+            let n = &r.name;
+            within(p.deformation.screw_axial.youngs_modulus_pa, base.deformation.screw_axial.youngs_modulus_pa, 0.85, 1.15, n);
+            within(p.coupling.torsional_stiffness_n_m_rad, base.coupling.torsional_stiffness_n_m_rad, 0.85, 1.15, n);
+            within(p.rod.coulomb_friction_n, base.rod.coulomb_friction_n, 0.7, 1.3, n);
+            within(p.rod.viscous_friction_n_s_m, base.rod.viscous_friction_n_s_m, 0.7, 1.3, n);
+            let mu = |eta: f64| (1.0 - eta) / eta;
+            within(mu(p.screw.efficiency), mu(base.screw.efficiency), 0.7, 1.3, n);
+            within(p.rod.payload_mass_kg, base.rod.payload_mass_kg, 0.02, 1.10, n);
+            within(p.motor.rotor_inertia_kg_m2, base.motor.rotor_inertia_kg_m2, 0.9, 1.1, n);
+            within(p.motor.phase_resistance_ohm, base.motor.phase_resistance_ohm, 0.9, 1.4, n);
+            within(p.motor.inductance_q_h, base.motor.inductance_q_h, 0.9, 1.1, n);
+            within(p.motor.flux_linkage_wb, base.motor.flux_linkage_wb, 0.9, 1.03, n);
+            assert!(p.screw.lead_error_m_per_m.abs() <= C7_LEAD_ERROR_M_PER_M, "{n}");
+            assert!((0.0..std::f64::consts::TAU).contains(&p.sensors.encoder_zero_rad), "{n}");
+            // The drive's belief is the base's.
+            assert_eq!(r.rig.control, RigConfig::nominal().unwrap().control, "{n}");
+        }
+        // Drawn rigs differ from each other; the corners are what they say.
+        assert_ne!(rigs[0].rig.plant, rigs[1].rig.plant);
+        let corner = |name: &str| &rigs.iter().find(|r| r.name == name).unwrap().rig.plant;
+        assert!((corner("corner_softer").coupling.torsional_stiffness_n_m_rad - 0.85 * 6000.0).abs() < 1e-9);
+        assert!((corner("corner_stiffer").deformation.contact.coefficient_m_per_n2_3 - 4.29e-7 / 1.15).abs() < 1e-18);
+        assert!((corner("corner_heavier").rod.payload_mass_kg - 1.1 * 136.5).abs() < 1e-9);
+        assert!((corner("corner_friction").rod.static_friction_n - 1.3 * 45.0).abs() < 1e-9);
+        let c = corner("corner_combined");
+        assert!((c.rod.payload_mass_kg - 1.1 * 136.5).abs() < 1e-9 && (c.rod.coulomb_friction_n - 39.0).abs() < 1e-9);
+        assert!((c.coupling.torsional_stiffness_n_m_rad - 5100.0).abs() < 1e-9);
+        // Documented: each changed value says so, the header says what the rig is.
+        let text = std::fs::read_to_string(dir.path().join("rig_001.toml")).unwrap();
+        assert!(text.starts_with("# Rig `rig_001`"), "{}", &text[..200]);
+        assert!(text.contains("payload_mass_kg = ") && text.contains("# family draw: base 136.5"));
+        // The same seed writes the same files.
+        let again = tempfile::tempdir().unwrap();
+        write_family(DEFAULT_RIG_TOML, "params/rig.toml", &spec, 12, 5, true, again.path()).unwrap();
+        for r in &rigs {
+            let name = format!("{}.toml", r.name);
+            assert_eq!(std::fs::read(dir.path().join(&name)).unwrap(), std::fs::read(again.path().join(&name)).unwrap());
+        }
+    }
+
+    #[test]
+    fn a_family_request_that_cannot_be_met_is_refused_naming_the_option() {
+        let dir = tempfile::tempdir().unwrap();
+        let go = |spec: FamilySpec, count: usize, corners: bool| {
+            write_family(DEFAULT_RIG_TOML, "params/rig.toml", &spec, count, 1, corners, dir.path()).unwrap_err().to_string()
+        };
+        let e = go(FamilySpec::default(), 0, false);
+        assert!(e.starts_with("--count:"), "{e}");
+        let e = go(FamilySpec { stiffness_tol: 1.0, ..Default::default() }, 3, true);
+        assert!(e.starts_with("--stiffness-tol:"), "{e}");
+        let e = go(FamilySpec { payload_min: 0.5, payload_max: 0.4, ..Default::default() }, 3, true);
+        assert!(e.starts_with("--payload-max:"), "{e}");
+        // A payload beyond what the motor holds at its continuous current.
+        let e = go(FamilySpec { payload_max: 1.5, ..Default::default() }, 3, true);
+        assert!(e.starts_with("--payload-max:") && e.contains("plant.rod.payload_mass_kg"), "{e}");
+        // Each end alone is valid, together they are not: both named.
+        let e = go(FamilySpec { flux_min: 0.8, payload_max: 1.25, ..Default::default() }, 3, true);
+        assert!(e.starts_with("--payload-max with --flux-min:"), "{e}");
+        assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none(), "nothing written on a refusal");
+    }
+}

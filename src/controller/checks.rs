@@ -46,14 +46,14 @@ impl Controller {
             } else {
                 0
             };
-            self.mode = Mode::Fault;
+            self.set_mode(Mode::Fault);
             return;
         }
         match self.mode {
             Mode::Running | Mode::Homing | Mode::Preloading => self.begin_stop(),
             // Already decelerating to rest.
             Mode::Stopping | Mode::Braking => {}
-            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
+            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.set_mode(Mode::Fault),
         }
     }
 
@@ -72,7 +72,7 @@ impl Controller {
         self.compensator.reset();
         self.homing_backing_off = false;
         self.stream.stop();
-        self.mode = Mode::Stopping;
+        self.set_mode(Mode::Stopping);
     }
 
     /// The outer-rate checks, then every new condition latched.
@@ -217,7 +217,14 @@ impl Controller {
         let told_to_turn = w_ref.abs() > f.encoder_lost_speed_rad_s && self.mode != Mode::Homing;
         self.no_count_s = if !moved && told_to_turn { self.no_count_s + dt } else { 0.0 };
         if self.no_count_s >= f.encoder_lost_time_s {
-            self.raise(FaultSet::ENCODER_LOST);
+            // No count while told to turn: a lost encoder if the back-EMF
+            // says the rotor turns, else a stall (the rotor stands, the
+            // position cannot follow: a controlled stop, not a fall).
+            if self.emf_watch.sees_rotation(&self.params) {
+                self.raise(FaultSet::ENCODER_LOST);
+            } else {
+                present.insert(FaultSet::POSITION_FOLLOWING);
+            }
         }
         present
     }

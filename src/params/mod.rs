@@ -11,6 +11,7 @@ use core::f32::consts::PI;
 pub mod leaves;
 mod lifecycle;
 mod live;
+pub mod rating;
 pub mod record;
 pub mod stream;
 mod validate;
@@ -18,6 +19,7 @@ pub mod value;
 pub use lifecycle::*;
 pub use stream::{StreamParams, LEGS};
 pub use value::{Value, ValueKind};
+pub use rating::{PowerStageRating, RatingLowered};
 pub use validate::{ParamError, ValidatedParams};
 
 use serde::{Deserialize, Serialize};
@@ -341,6 +343,12 @@ impl ControlParams {
     /// Torque per q-axis ampere, `1.5 p ψ_f` (surface magnets, `L_d = L_q`).
     pub fn torque_constant_n_m_a(&self) -> f32 {
         1.5 * self.motor.pole_pairs as f32 * self.motor.flux_linkage_wb
+    }
+
+    /// The rod force the motor's peak current rating gives, N (forward
+    /// efficiency): the largest force a stream may ask to feed forward.
+    pub fn thrust_peak_n(&self) -> f32 {
+        self.torque_constant_n_m_a() * self.ratings.motor_peak_current_a * self.drive_train.screw_efficiency / self.metres_per_rad()
     }
 
     pub fn pwm_period_s(&self) -> f32 {

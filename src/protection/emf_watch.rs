@@ -11,6 +11,7 @@
 
 use crate::foc::Dq;
 use crate::math::atan2;
+use core::f32::consts::FRAC_PI_2;
 use crate::params::ControlParams;
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -26,6 +27,17 @@ pub struct EmfWatch {
 impl EmfWatch {
     pub fn reset(&mut self) {
         *self = Self::default();
+    }
+
+    /// True when the window judged so far shows `e` turning, on average,
+    /// faster than the mismatch threshold: the rotor turns though the count
+    /// may not. False with too little EMF to judge (a rotor at rest, or
+    /// turning slower than the threshold) or a fixed `e` (a stalled rotor:
+    /// neither it nor the frame turns, whatever resistance error `u − R i`
+    /// leaves).
+    pub fn sees_rotation(&self, p: &ControlParams) -> bool {
+        let threshold_e = p.power_stage.emf_speed_mismatch_rad_s * p.motor.pole_pairs as f32;
+        self.window_s > 0.0 && self.turned_rad.abs() > threshold_e * self.window_s
     }
 
     /// One look, every `dt_s`: true once `e` has turned, on average over
@@ -46,7 +58,18 @@ impl EmfWatch {
             self.turned_rad = 0.0;
             return false;
         }
-        self.turned_rad += atan2(prev.d * e.q - prev.q * e.d, prev.d * e.d + prev.q * e.q);
+        let step_rad = atan2(prev.d * e.q - prev.q * e.d, prev.d * e.d + prev.q * e.q);
+        if step_rad.abs() > FRAC_PI_2 {
+            // Half a turn or more between two looks is no slip (at the
+            // highest legal speed a slipping frame turns `e` by a quarter
+            // turn a look at most): the speed changed sign and `e` passed
+            // through zero under the `L di/dt` and `ω L i` terms, as in a
+            // rotor that bounces back off an obstacle. Judge afresh.
+            self.window_s = 0.0;
+            self.turned_rad = 0.0;
+            return false;
+        }
+        self.turned_rad += step_rad;
         self.window_s += dt_s;
         if self.window_s < p.power_stage.emf_mismatch_time_s {
             return false;

@@ -48,6 +48,12 @@ pub trait DriveAccess {
     /// position period; the server's checks allow for that.
     fn status(&self) -> DriveStatus;
 
+    /// Temperatures for `Status`: the I²t model's normalised winding
+    /// level (NaN if not known) and the power stage's, if measured.
+    fn temperatures(&self) -> (f32, Option<f32>) {
+        (f32::NAN, None)
+    }
+
     /// The parameters the controller runs with now, including what it
     /// measured itself (`encoder.electrical_offset_rad` after commutation):
     /// a `ParamSet` is staged on this copy, so a stale one would undo a

@@ -149,6 +149,64 @@ pub struct Info {
     pub faults: u32,
     /// PWM (current-loop) rate, for interpreting captures.
     pub pwm_frequency_hz: f32,
+    /// What became of the saved parameter record at power-up.
+    pub boot_record: BootRecord,
+    /// The stream period this drive expects, s; 0: any interval from the
+    /// position-loop period up to `control.stream.period_max_s` (measured
+    /// as the points arrive).
+    pub stream_period_s: f32,
+    /// [`PROTOCOL_VERSION`](super::PROTOCOL_VERSION), for humans and logs;
+    /// compatibility is decided by `schema_hash`.
+    pub protocol_version: u16,
+}
+
+/// What became of the saved parameter record at power-up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum BootRecord {
+    /// The transport's owner did not say.
+    Unknown,
+    /// No record stored: the image's defaults run.
+    NoRecord,
+    /// The record was loaded.
+    Loaded,
+    /// A record was found and refused: the image's defaults run. `leaf`:
+    /// the failing parameter for `Invalid`, else `u16::MAX`.
+    Rejected { why: RecordRejection, leaf: u16 },
+}
+
+/// Why a stored record was refused (`params::record::RecordError`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum RecordRejection {
+    /// The store could not be read.
+    Storage,
+    TooShort,
+    Magic,
+    Crc,
+    Schema,
+    Length,
+    Decode,
+    /// Decoded, but the set does not validate (or asks beyond the board).
+    Invalid,
+    TooLarge,
+}
+
+impl BootRecord {
+    /// A decode's outcome as a boot report.
+    pub fn of_error(e: &crate::params::record::RecordError) -> Self {
+        use crate::params::record::RecordError as E;
+        let (why, leaf) = match e {
+            E::Empty => return Self::NoRecord,
+            E::TooShort => (RecordRejection::TooShort, u16::MAX),
+            E::Magic => (RecordRejection::Magic, u16::MAX),
+            E::Crc => (RecordRejection::Crc, u16::MAX),
+            E::Schema => (RecordRejection::Schema, u16::MAX),
+            E::Length => (RecordRejection::Length, u16::MAX),
+            E::Decode => (RecordRejection::Decode, u16::MAX),
+            E::Invalid(p) => (RecordRejection::Invalid, p.leaf),
+            E::TooLarge => (RecordRejection::TooLarge, u16::MAX),
+        };
+        Self::Rejected { why, leaf }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -159,6 +217,19 @@ pub struct Status {
     pub readiness: u8,
     pub time_s: f32,
     pub test_running: bool,
+    /// Motor-side position, m (the encoder's, on the rod's scale).
+    pub position_m: f32,
+    /// Motor speed, rad/s.
+    pub speed_rad_s: f32,
+    pub current_d_a: f32,
+    pub current_q_a: f32,
+    pub bus_voltage_v: f32,
+    /// Winding temperature of the I²t model, normalised (1 = the
+    /// continuous rating's); NaN if the drive does not say.
+    pub winding_thermal_level: f32,
+    /// Power-stage temperature, °C, if measured.
+    pub power_stage_temperature_c: Option<f32>,
+    pub boot_record: BootRecord,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -214,6 +285,10 @@ pub enum Error {
     Test { reason: Reason },
     /// The drive is busy with a request of this kind (e.g. a save running).
     Busy,
+    /// Another client controls the drive: this one may only read (info,
+    /// status, parameters, telemetry, capture status and data) until that
+    /// one disconnects.
+    ControlledByAnotherClient,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]

@@ -53,6 +53,8 @@ pub struct Server {
     telemetry_fields: u32,
     telemetry_rate_hz: u16,
     last_point: Option<LastPoint>,
+    boot_record: BootRecord,
+    stream_period_s: f32,
 }
 
 /// `s` as reply text, cut at [`TEXT_MAX`] (on a character boundary).
@@ -106,7 +108,17 @@ impl Server {
     /// A server for a drive whose image defaults are `defaults` (what
     /// `Defaults` restores and a failed `Load` falls back to).
     pub const fn new(identity: Identity, defaults: ValidatedParams) -> Self {
-        Self { identity, defaults, telemetry_fields: 0, telemetry_rate_hz: 0, last_point: None }
+        Self { identity, defaults, telemetry_fields: 0, telemetry_rate_hz: 0, last_point: None, boot_record: BootRecord::Unknown, stream_period_s: 0.0 }
+    }
+
+    /// What became of the saved record at power-up (`Info`, `Status`).
+    pub fn set_boot_record(&mut self, b: BootRecord) {
+        self.boot_record = b;
+    }
+
+    /// The stream period this drive expects (`Info`); 0: any.
+    pub fn set_stream_period_s(&mut self, s: f32) {
+        self.stream_period_s = s;
     }
 
     /// One byte from the transport: the reply when it completed a frame,
@@ -139,7 +151,7 @@ impl Server {
                 Err(e) => Err(e),
             },
             Request::Info => Ok(self.info(drive)),
-            Request::Status => Ok(Self::status(drive)),
+            Request::Status => Ok(self.status(drive)),
             Request::ParamCount => Ok(Reply::ParamCount { count: u16::try_from(PARAM_COUNT).unwrap_or(u16::MAX) }),
             Request::ParamGet { index } => leaves::get(&drive.params(), usize::from(*index))
                 .map(|value| Reply::Param { index: *index, value })
@@ -167,13 +179,31 @@ impl Server {
             mode: t.mode,
             faults: t.faults.bits(),
             pwm_frequency_hz: drive.params().rates.pwm_frequency_hz,
+            boot_record: self.boot_record,
+            stream_period_s: self.stream_period_s,
+            protocol_version: super::PROTOCOL_VERSION,
         })
     }
 
-    fn status<D: DriveAccess>(drive: &D) -> Reply {
+    fn status<D: DriveAccess>(&self, drive: &D) -> Reply {
         let s = drive.status();
         let t = s.telemetry;
-        Reply::Status(Status { mode: t.mode, faults: t.faults.bits(), readiness: t.readiness.bits(), time_s: t.time_s, test_running: s.test_running })
+        let (winding_thermal_level, power_stage_temperature_c) = drive.temperatures();
+        Reply::Status(Status {
+            mode: t.mode,
+            faults: t.faults.bits(),
+            readiness: t.readiness.bits(),
+            time_s: t.time_s,
+            test_running: s.test_running,
+            position_m: t.motor_position_m,
+            speed_rad_s: t.speed_rad_s,
+            current_d_a: t.current_d_a,
+            current_q_a: t.current_q_a,
+            bus_voltage_v: t.bus_voltage_v,
+            winding_thermal_level,
+            power_stage_temperature_c,
+            boot_record: self.boot_record,
+        })
     }
 
     /// Staged on a copy, validated whole, then applied: nothing partial.
@@ -221,26 +251,15 @@ impl Server {
             return Err(Error::BridgeOn);
         }
         let mut buf = [0u8; record::RECORD_MAX];
-        let found = match store.load(&mut buf) {
-            Ok(n) => record::decode(buf.get(..n).unwrap_or(&[])).map_err(|e| text(e.reason())),
-            Err(reason) => Err(reason),
-        };
-        match found {
-            Ok(p) => {
-                self.apply_whole(p, drive)?;
-                Ok(Reply::Loaded { from_flash: true, note: text("record applied") })
-            }
-            Err(why) => {
-                self.apply_whole(self.defaults, drive)?;
-                let mut note = why;
-                for c in "; image defaults applied".chars() {
-                    if note.push(c).is_err() {
-                        break;
-                    }
-                }
-                Ok(Reply::Loaded { from_flash: false, note })
-            }
-        }
+        // A record that cannot be used is refused and nothing changes: the
+        // live set may hold unsaved gains.
+        let n = store.load(&mut buf).map_err(|reason| Error::Storage { reason })?;
+        let p = record::decode(buf.get(..n).unwrap_or(&[])).map_err(|e| match e {
+            record::RecordError::Invalid(pe) => invalid_param(pe),
+            e => Error::Storage { reason: text(e.reason()) },
+        })?;
+        self.apply_whole(p, drive)?;
+        Ok(Reply::Loaded { from_flash: true, note: text("record applied") })
     }
 
     fn defaults<D: DriveAccess>(&mut self, drive: &mut D) -> Result<Reply, Error> {
@@ -304,6 +323,9 @@ impl Server {
         }
         if sp.force_n.is_some_and(|f| !f.is_finite()) {
             return Err(stream_error(Reason::ForceNotFinite));
+        }
+        if sp.force_n.is_some_and(|f| f.abs() > p.thrust_peak_n()) {
+            return Err(stream_error(Reason::ForceBeyondThrust));
         }
         if sp.position_m < p.limits.stroke_min_m {
             return Err(stream_error(Reason::BelowStrokeMin));

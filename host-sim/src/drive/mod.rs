@@ -7,34 +7,29 @@
 //!   board's main task adds around them: `DriveAccess` on the controller
 //!   between two steps, the parameter store (`store`: a file for the flash
 //!   record), telemetry at the configured rate, the capture buffer.
-//! - `serve`: accepts one client at a time (sequential connections), reads
-//!   frames with `FrameReader`, answers, and paces the simulation (`Pace`).
+//! - `serve`: any number of clients at once, one of them in control
+//!   (`serve.rs`), frames read with `FrameReader`, the simulation paced
+//!   (`Pace`).
 //!
 //! Capture and test signals are the core's (`Controller::capture_*`,
 //! `start_test`, through `protocol::drive::on_controller` as on the board),
 //! with a capture store of the board's size.
 
+pub mod serve;
 pub mod store;
 
 use crate::config::RigConfig;
 use crate::plant::Plant;
 use crate::sim::{commissioned_control, ClosedLoop};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use servo_core::controller::ApplyError;
 use servo_core::params::{record, ValidatedParams};
 use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus};
 use servo_core::protocol::server::{Identity, Server};
-use servo_core::protocol::{
-    self, CaptureRequest, DriveFrame, Error, Feed, FrameReader, Reply, Request, RequestFrame, TelemetryFrame, TestSignal,
-    FRAME_MAX,
-};
+use servo_core::protocol::{self, CaptureRequest, DriveFrame, Error, Reply, Request, RequestFrame, TelemetryFrame, TestSignal};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
-use std::io::{ErrorKind, Read, Write};
-use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::sync::{Arc, Mutex};
 
 /// How simulated time relates to the wall clock.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -43,7 +38,8 @@ pub enum Pace {
     Realtime,
     /// As fast as the host computes while a client is connected; while a
     /// stream is live, exactly one stream period per stream frame
-    /// (deterministic whatever the host's scheduling); paused with no client.
+    /// (deterministic whatever the host's scheduling); with no client, the
+    /// wall clock (start-up and moves go on between two tool commands).
     Fast,
 }
 
@@ -66,7 +62,25 @@ pub struct DriveOptions {
     /// frame (wall clock); the simulation then runs free again.
     pub stream_idle_s: f64,
     pub seed: u64,
+    /// Every position period's state, for benchmarks (`TraceRow`).
+    pub trace: Option<Trace>,
 }
+
+/// A drive's state at one position-loop period (benchmarks read it).
+#[derive(Clone, Copy, Debug)]
+pub struct TraceRow {
+    pub time_s: f64,
+    pub position_reference_m: f32,
+    pub motor_position_m: f32,
+    /// Motor speed as rod speed, m/s.
+    pub speed_m_s: f32,
+    pub faults: u32,
+    pub mode: servo_core::Mode,
+    /// A stream point accepted in this period: its position.
+    pub stream_point_m: Option<f32>,
+}
+
+pub type Trace = Arc<Mutex<Vec<TraceRow>>>;
 
 impl DriveOptions {
     pub fn new(rig: RigConfig) -> Self {
@@ -81,6 +95,7 @@ impl DriveOptions {
             stream_period_s,
             stream_idle_s: 0.25,
             seed: 1,
+            trace: None,
         }
     }
 }
@@ -88,6 +103,7 @@ impl DriveOptions {
 /// `DriveAccess` on the simulated controller, between two steps.
 struct Access<'a> {
     cl: &'a mut ClosedLoop,
+    rating: servo_core::params::PowerStageRating,
 }
 
 impl DriveAccess for Access<'_> {
@@ -97,10 +113,16 @@ impl DriveAccess for Access<'_> {
     fn params(&self) -> ControlParams {
         *self.cl.controller.params()
     }
+    fn temperatures(&self) -> (f32, Option<f32>) {
+        (self.cl.controller.thermal_level(), self.cl.controller.power_stage_temperature_c())
+    }
     fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
         self.cl.controller.command(cmd)
     }
     fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
+        if let Some(leaf) = self.rating.exceeded_by(params.get()) {
+            return Err(ApplyError::BeyondHardware { leaf });
+        }
         self.cl.controller.apply_params(params)
     }
     fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, servo_core::protocol::Reason> {
@@ -124,6 +146,10 @@ pub struct SimDrive {
     stream_live: bool,
     /// What happened to the saved record at start (for the log).
     pub boot_note: String,
+    identity: Identity,
+    defaults: ValidatedParams,
+    pending_point_m: Option<f32>,
+    boot_record: servo_core::protocol::BootRecord,
 }
 
 impl SimDrive {
@@ -140,13 +166,18 @@ impl SimDrive {
         // The image's defaults; commissioned: offset and reference known.
         let defaults = if opts.commissioned { commissioned_control(rig.control, &plant) } else { rig.control };
         let defaults = ValidatedParams::new(defaults).map_err(|e| anyhow!("control parameters: {e}"))?;
-        let (mut params, boot_note) = match store.read() {
+        use servo_core::protocol::{BootRecord, RecordRejection};
+        let (mut params, boot_note, boot_record) = match store.read() {
             Ok(Some(bytes)) => match record::decode(&bytes) {
-                Ok(p) => (*p.get(), "saved record loaded".to_string()),
-                Err(e) => (*defaults.get(), format!("saved record not used ({}); image defaults", e.reason())),
+                Ok(p) => (*p.get(), "saved record loaded".to_string(), BootRecord::Loaded),
+                Err(e) => (*defaults.get(), format!("saved record not used ({}); image defaults", e.reason()), BootRecord::of_error(&e)),
             },
-            Ok(None) => (*defaults.get(), "no saved record; image defaults".to_string()),
-            Err(e) => (*defaults.get(), format!("store: {e}; image defaults")),
+            Ok(None) => (*defaults.get(), "no saved record; image defaults".to_string(), BootRecord::NoRecord),
+            Err(e) => (
+                *defaults.get(),
+                format!("store: {e}; image defaults"),
+                BootRecord::Rejected { why: RecordRejection::Storage, leaf: u16::MAX },
+            ),
         };
         if opts.commissioned {
             // Facts of this rig and power cycle, not settings a record carries.
@@ -155,6 +186,13 @@ impl SimDrive {
             params.startup.homed = d.startup.homed;
             params.encoder.electrical_offset_rad = d.encoder.electrical_offset_rad;
         }
+        // Like the board at power-up: lowered to the power stage's rating,
+        // and said so.
+        let (params, lowered) = rig.plant.inverter.rating().lower(params);
+        let boot_note = match lowered.first_leaf() {
+            Some(_) => format!("{boot_note}; lowered to the power stage's rating: {lowered:?}"),
+            None => boot_note,
+        };
         let controller = servo_core::Controller::try_new(params).map_err(|e| anyhow!("control parameters: {e}"))?;
         let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
         cl.override_pending(servo_core::PwmCommand::OFF);
@@ -174,15 +212,20 @@ impl SimDrive {
             board: "host-sim simulated drive",
         };
         let divider = u64::from(params.rates.position_loop_divider);
+        let server = Self::server_of(identity, defaults, boot_record, &opts);
         Ok(Self {
             cl,
             opts,
-            server: Server::new(identity, defaults),
+            server,
             store,
             telemetry_next: 0,
             divider,
             stream_live: false,
             boot_note,
+            identity,
+            defaults,
+            pending_point_m: None,
+            boot_record,
         })
     }
 
@@ -198,9 +241,41 @@ impl SimDrive {
         f64::from(self.cl.controller.params().rates.pwm_frequency_hz)
     }
 
-    /// One PWM period; a telemetry frame if one is due.
+    /// A protocol server of this drive (one per client: each has its own
+    /// telemetry and stream state).
+    pub fn new_server(&self) -> Server {
+        Self::server_of(self.identity, self.defaults, self.boot_record, &self.opts)
+    }
+
+    fn server_of(identity: Identity, defaults: ValidatedParams, boot: servo_core::protocol::BootRecord, opts: &DriveOptions) -> Server {
+        let mut s = Server::new(identity, defaults);
+        s.set_boot_record(boot);
+        if opts.pace == Pace::Fast {
+            // Lock-step: one frame, one stream period of drive time.
+            s.set_stream_period_s(opts.stream_period_s as f32);
+        }
+        s
+    }
+
+    pub fn divider(&self) -> u64 {
+        self.divider
+    }
+
+    pub fn options(&self) -> &DriveOptions {
+        &self.opts
+    }
+
+    pub fn set_stream_live(&mut self, live: bool) {
+        self.stream_live = live;
+    }
+
+    /// One PWM period; a telemetry frame of the in-process server if one
+    /// is due.
     pub fn step(&mut self) -> Option<TelemetryFrame> {
         self.cl.step();
+        if self.cl.periods().is_multiple_of(self.divider) {
+            self.record_trace();
+        }
         let rate = self.server.telemetry_rate_hz();
         let k = self.cl.periods();
         if rate > 0 && k >= self.telemetry_next && k.is_multiple_of(self.divider) {
@@ -221,20 +296,48 @@ impl SimDrive {
         }
     }
 
+    fn record_trace(&mut self) {
+        let Some(trace) = &self.opts.trace else { return };
+        let t = self.cl.controller.telemetry();
+        let row = TraceRow {
+            time_s: self.cl.time_s(),
+            position_reference_m: t.position_reference_m,
+            motor_position_m: t.motor_position_m,
+            speed_m_s: t.speed_rad_s * self.cl.controller.params().metres_per_rad(),
+            faults: t.faults.bits(),
+            mode: t.mode,
+            stream_point_m: self.pending_point_m.take(),
+        };
+        if let Ok(mut v) = trace.lock() {
+            v.push(row);
+        }
+    }
+
     /// Handles one request through the core's server; `None`: no reply (an
     /// accepted stream point).
     pub fn handle(&mut self, frame: &RequestFrame) -> Option<DriveFrame> {
         let was_on = self.server.telemetry_rate_hz() > 0;
-        let mut access = Access { cl: &mut self.cl };
-        let out = self.server.handle(frame, &mut access, &mut self.store);
-        match &frame.request {
-            Request::Stream(_) if out.is_none() => self.stream_live = true,
-            Request::Stream(_) => {}
-            Request::Status | Request::Info | Request::Capture(_) | Request::Telemetry { .. } => {}
-            _ => self.stream_live = false,
-        }
+        let mut server = std::mem::replace(&mut self.server, Server::new(self.identity, self.defaults));
+        let out = self.handle_with(&mut server, frame);
+        self.server = server;
         if !was_on && self.server.telemetry_rate_hz() > 0 {
             self.telemetry_next = self.cl.periods();
+        }
+        out
+    }
+
+    /// Handles one request through `server` (a client's).
+    pub fn handle_with(&mut self, server: &mut Server, frame: &RequestFrame) -> Option<DriveFrame> {
+        let mut access = Access { cl: &mut self.cl, rating: self.opts.rig.plant.inverter.rating() };
+        let out = server.handle(frame, &mut access, &mut self.store);
+        match &frame.request {
+            Request::Stream(p) if out.is_none() => {
+                self.stream_live = true;
+                self.pending_point_m = Some(p.position_m);
+            }
+            Request::Stream(_) => {}
+            r if is_read_only(r) => {}
+            _ => self.stream_live = false,
         }
         out
     }
@@ -245,155 +348,14 @@ impl SimDrive {
     }
 }
 
-/// A stop flag for `serve` (tests stop their in-process drive with it).
-pub type StopFlag = Arc<AtomicBool>;
+pub use serve::{serve, spawn_local, StopFlag};
 
-/// Serves clients one after another until `stop` is set.
-pub fn serve(listener: TcpListener, opts: DriveOptions, stop: StopFlag) -> Result<()> {
-    let mut drive = SimDrive::new(opts.clone())?;
-    eprintln!("drive: {}", drive.boot_note);
-    listener.set_nonblocking(true)?;
-    let started = Instant::now();
-    let mut sim_offset_s = 0.0;
-    while !stop.load(Ordering::Relaxed) {
-        match listener.accept() {
-            Ok((sock, peer)) => {
-                eprintln!("drive: client {peer} connected");
-                if let Err(e) = session(&mut drive, sock, &stop) {
-                    eprintln!("drive: client {peer}: {e:#}");
-                }
-                sim_offset_s = drive.cl.time_s() - started.elapsed().as_secs_f64();
-                eprintln!("drive: client {peer} gone at t = {:.3} s", drive.cl.time_s());
-            }
-            Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                if opts.pace == Pace::Realtime {
-                    // No client: the drive runs on as a board would.
-                    let mut sink = Vec::new();
-                    advance_realtime(&mut drive, started, sim_offset_s, &mut sink);
-                }
-                std::thread::sleep(Duration::from_millis(2));
-            }
-            Err(e) => return Err(e).context("accept"),
-        }
-    }
-    Ok(())
-}
-
-fn advance_realtime(drive: &mut SimDrive, started: Instant, offset_s: f64, out: &mut Vec<TelemetryFrame>) {
-    let target = started.elapsed().as_secs_f64() + offset_s;
-    // Bounded catch-up so a slow host still answers requests.
-    let mut n = 0;
-    while drive.cl.time_s() < target && n < 100 {
-        drive.step_to_boundary(out);
-        n += 1;
-    }
-}
-
-fn send(sock: &mut impl Write, frame: &DriveFrame) -> Result<()> {
-    let mut buf = [0u8; FRAME_MAX];
-    let bytes = protocol::encode(frame, &mut buf).ok_or_else(|| anyhow!("reply too large to encode: {frame:?}"))?;
-    sock.write_all(bytes)?;
-    Ok(())
-}
-
-fn session(drive: &mut SimDrive, sock: TcpStream, stop: &StopFlag) -> Result<()> {
-    sock.set_nodelay(true)?;
-    let mut rd = sock.try_clone()?;
-    let mut wr = std::io::BufWriter::with_capacity(64 * 1024, sock);
-    let mut reader = FrameReader::new();
-    let mut buf = [0u8; 4096];
-    let mut tlm = Vec::new();
-    let mut last_stream_frame = Instant::now();
-    let fast = drive.opts.pace == Pace::Fast;
-    let stream_periods = (drive.opts.stream_period_s * drive.pwm_hz()).round().max(1.0) as u64;
-    let sim_at_connect = drive.cl.time_s();
-    let wall_at_connect = Instant::now();
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(());
-        }
-        // Lock-step: wait for the next frame; otherwise only look.
-        let lockstep = fast && drive.stream_live;
-        if lockstep && last_stream_frame.elapsed().as_secs_f64() > drive.opts.stream_idle_s {
-            drive.stream_live = false;
-        }
-        let lockstep = fast && drive.stream_live;
-        rd.set_nonblocking(!lockstep)?;
-        if lockstep {
-            rd.set_read_timeout(Some(Duration::from_millis(20)))?;
-        }
-        let n = match rd.read(&mut buf) {
-            Ok(0) => return Ok(()),
-            Ok(n) => n,
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
-            Err(e) if e.kind() == ErrorKind::ConnectionReset => return Ok(()),
-            Err(e) => return Err(e.into()),
-        };
-        for &b in &buf[..n] {
-            let req: Result<RequestFrame, protocol::FrameError> = match reader.push(b) {
-                Feed::Pending => continue,
-                Feed::Dropped(e) => Err(e),
-                Feed::Frame(f) => protocol::decode(f),
-            };
-            match req {
-                Err(e) => send(&mut wr, &SimDrive::frame_error(e))?,
-                Ok(frame) => {
-                    let is_stream = matches!(frame.request, Request::Stream(_));
-                    let live_before = drive.stream_live;
-                    let reply = drive.handle(&frame);
-                    if is_stream && fast && (drive.stream_live || live_before) {
-                        // The frame was applied at a position-loop boundary
-                        // (the drive always rests on one); advance exactly one
-                        // stream period of simulated time, refused or not, so
-                        // the drive's clock keeps the stream's timeline.
-                        last_stream_frame = Instant::now();
-                        for _ in 0..stream_periods {
-                            tlm.extend(drive.step());
-                        }
-                        if !drive.cl.periods().is_multiple_of(drive.divider) {
-                            drive.step_to_boundary(&mut tlm);
-                        }
-                    }
-                    if let Some(reply) = reply {
-                        send(&mut wr, &reply)?;
-                    }
-                }
-            }
-            for t in tlm.drain(..) {
-                send(&mut wr, &DriveFrame::Telemetry(t))?;
-            }
-        }
-        // Advance the simulation.
-        if fast {
-            if !drive.stream_live {
-                // Free running: one position period between looks at the socket.
-                drive.step_to_boundary(&mut tlm);
-            }
-        } else {
-            let target = sim_at_connect + wall_at_connect.elapsed().as_secs_f64();
-            let mut k = 0;
-            while drive.cl.time_s() < target && k < 50 {
-                drive.step_to_boundary(&mut tlm);
-                k += 1;
-            }
-            if drive.cl.time_s() >= target && n == 0 {
-                std::thread::sleep(Duration::from_micros(300));
-            }
-        }
-        for t in tlm.drain(..) {
-            send(&mut wr, &DriveFrame::Telemetry(t))?;
-        }
-        wr.flush()?;
-    }
-}
-
-/// Starts a drive on `127.0.0.1:0` in a thread (tests, `bench-stream`).
-/// Returns the address, the stop flag and the thread.
-pub fn spawn_local(opts: DriveOptions) -> Result<(std::net::SocketAddr, StopFlag, std::thread::JoinHandle<Result<()>>)> {
-    let listener = TcpListener::bind("127.0.0.1:0")?;
-    let addr = listener.local_addr()?;
-    let stop: StopFlag = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    let h = std::thread::spawn(move || serve(listener, opts, s));
-    Ok((addr, stop, h))
+/// Requests that change nothing on the drive: any client may send them,
+/// also while another one controls it.
+pub fn is_read_only(r: &Request) -> bool {
+    use servo_core::protocol::CaptureRequest as C;
+    matches!(
+        r,
+        Request::Info | Request::Status | Request::ParamCount | Request::ParamGet { .. } | Request::Telemetry { .. } | Request::Capture(C::Status | C::Read { .. })
+    )
 }

@@ -9,9 +9,11 @@
 //! - [`runner`]: [`run`] a [`Scenario`] into an [`Outcome`];
 //! - [`catalog`]: the scenarios of the reliability table (`docs/reliability.md`),
 //!   shared by the tests (`tests/fault_*.rs`) and `host-sim faults`;
-//! - [`report`]: `summary.json` and the measured table.
+//! - [`report`]: `summary.json` and the measured table;
+//! - [`family`]: the catalogue over a rig family (`host-sim faults --family DIR`).
 
 pub mod catalog;
+pub mod family;
 pub mod injection;
 pub mod report;
 pub mod runner;

@@ -71,6 +71,9 @@ pub struct Expect {
     /// The true motor-side and rod positions stay inside the stroke widened
     /// by this much.
     pub stroke_margin_m: f64,
+    /// The rod's speed after the latch stays below this (a controlled stop
+    /// must not let the load run); `None`: not judged.
+    pub rod_speed_after_latch_max_m_s: Option<f64>,
 }
 
 /// A named fault scenario.
@@ -268,6 +271,11 @@ impl Outcome {
                 self.rod_range_m.1,
                 e.stroke_margin_m * 1e3
             ));
+        }
+        if let (Some(bound), Some(v_max)) = (e.rod_speed_after_latch_max_m_s, self.rod_speed_after_latch_max_m_s) {
+            if v_max > bound {
+                v.push(format!("rod reached {v_max:.3} m/s after the latch, bound {bound} m/s"));
+            }
         }
         if let Some((period, what)) = &self.non_finite {
             v.push(format!("non-finite {what} at period {period}"));

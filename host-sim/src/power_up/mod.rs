@@ -3,9 +3,11 @@
 //! on the closed brake, amplifier offsets uncorrected — and the ways that
 //! start goes wrong (blocked rotor, swapped phases, wrong pole count,
 //! unplugged encoder, a supply that sags, a brake that slips, homing that
-//! finds nothing). `host-sim power-up --out DIR`.
+//! finds nothing). `host-sim power-up --out DIR`; over a rig family,
+//! `--family DIR` (`family`).
 
 pub mod cases;
+pub mod family;
 pub mod report;
 pub mod run;
 

@@ -1,6 +1,7 @@
 //! Scenarios: what the closed loop is asked to do, and what it recorded.
 
 pub mod dataset;
+pub mod family;
 pub mod identification;
 pub mod stroke_cycle;
 

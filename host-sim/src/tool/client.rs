@@ -12,8 +12,30 @@ use std::io::{ErrorKind, Read, Write};
 use std::time::{Duration, Instant};
 
 /// A byte link to a drive.
-pub trait Link: Read + Write + Send {}
-impl<T: Read + Write + Send> Link for T {}
+pub trait Link: Read + Write + Send {
+    /// How long a read waits for bytes; zero: not at all (a look).
+    fn set_read_wait(&mut self, wait: Duration) -> std::io::Result<()>;
+}
+
+impl Link for std::net::TcpStream {
+    fn set_read_wait(&mut self, wait: Duration) -> std::io::Result<()> {
+        if wait.is_zero() {
+            self.set_nonblocking(true)
+        } else {
+            self.set_nonblocking(false)?;
+            self.set_read_timeout(Some(wait))
+        }
+    }
+}
+
+impl Link for Box<dyn serialport::SerialPort> {
+    fn set_read_wait(&mut self, wait: Duration) -> std::io::Result<()> {
+        self.set_timeout(wait).map_err(std::io::Error::other)
+    }
+}
+
+/// How long a read waits while a reply is awaited.
+const READ_WAIT: Duration = Duration::from_millis(5);
 
 /// Where the drive is.
 #[derive(Clone, Debug)]
@@ -27,14 +49,15 @@ impl Endpoint {
         Ok(match self {
             Endpoint::Serial { port, baud } => Box::new(
                 serialport::new(port, *baud)
-                    .timeout(Duration::from_millis(5))
+                    .timeout(READ_WAIT)
                     .open()
-                    .with_context(|| format!("opening serial port {port} at {baud} Bd"))?,
+                    .with_context(|| format!("opening serial port {port} at {baud} Bd; check the cable and the port name (ls /dev/ttyACM*)"))?,
             ),
             Endpoint::Tcp(addr) => {
-                let s = std::net::TcpStream::connect(addr).with_context(|| format!("connecting to {addr}"))?;
+                let s = std::net::TcpStream::connect(addr)
+                    .with_context(|| format!("connecting to {addr}; is a drive serving there (`host-sim drive serve --listen {addr}`)?"))?;
                 s.set_nodelay(true)?;
-                s.set_read_timeout(Some(Duration::from_millis(5)))?;
+                s.set_read_timeout(Some(READ_WAIT))?;
                 Box::new(s)
             }
         })
@@ -137,14 +160,22 @@ impl Client {
         Ok(())
     }
 
-    /// Reads for up to `d`, collecting telemetry and unsolicited replies.
+    /// Reads for up to `d`, collecting telemetry and unsolicited replies;
+    /// `Duration::ZERO`: only what has arrived, without waiting.
     pub fn poll(&mut self, d: Duration) -> Result<()> {
         let t0 = Instant::now();
         let mut got = Vec::new();
-        loop {
-            self.pump(|seq, reply| got.push(Unsolicited { seq, error: reply }))?;
-            if t0.elapsed() >= d {
-                break;
+        if d.is_zero() {
+            self.link.set_read_wait(Duration::ZERO)?;
+            let r = self.pump(|seq, reply| got.push(Unsolicited { seq, error: reply }));
+            self.link.set_read_wait(READ_WAIT)?;
+            r?;
+        } else {
+            loop {
+                self.pump(|seq, reply| got.push(Unsolicited { seq, error: reply }))?;
+                if t0.elapsed() >= d {
+                    break;
+                }
             }
         }
         self.unsolicited.extend(got);
@@ -161,7 +192,10 @@ impl Client {
         while answer.is_none() {
             if t0.elapsed() > self.timeout {
                 self.unsolicited.extend(other);
-                bail!("no reply to {what} (seq {seq}) within {:.1} s", self.timeout.as_secs_f64());
+                bail!(
+                    "no reply to {what} (seq {seq}) within {:.1} s: the drive is not answering; check it is powered and the link (cable, --baud, --tcp address), then retry; `--timeout-s` waits longer",
+                    self.timeout.as_secs_f64()
+                );
             }
             self.pump(|s, r| if s == seq { answer = Some(r) } else { other.push(Unsolicited { seq: s, error: r }) })?;
         }
@@ -219,21 +253,56 @@ pub fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
-/// One line for a refusal.
+/// One line for a refusal: what, why, and the command to try next.
 pub fn describe(e: &Error) -> String {
     match e {
-        Error::Frame(f) => format!("unreadable frame ({f:?})"),
-        Error::UnknownParam { index } => format!("no parameter `{}`", param_path(*index)),
-        Error::WrongType { index, expected } => format!("`{}` takes a {expected:?}", param_path(*index)),
-        Error::InvalidParam { index, reason } => format!("`{}`: {reason}", param_path(*index)),
-        Error::NeedsBridgeOff { index } => format!("`{}` changes only with the bridge off", param_path(*index)),
+        Error::Frame(f) => format!("the drive could not read a frame ({f:?}); check the link (--baud, cable) and retry"),
+        Error::UnknownParam { index } => format!("no parameter `{}` on this drive; `param list` shows them", param_path(*index)),
+        Error::WrongType { index, expected } => format!("`{}` takes a {expected:?} value; `param get {}` shows one", param_path(*index), param_path(*index)),
+        Error::InvalidParam { index, reason } => {
+            format!("`{}`: {reason}; nothing was changed (`param get {}` shows the value in force)", param_path(*index), param_path(*index))
+        }
+        Error::NeedsBridgeOff { index } => format!("`{}` changes only with the bridge off: `cmd disable` first", param_path(*index)),
         Error::Telemetry { reason } => format!("telemetry: {reason}"),
-        Error::BridgeOn => "refused while the bridge is on (disable first)".into(),
-        Error::Storage { reason } => format!("storage: {reason}"),
-        Error::Command(c) => format!("command refused: {c:?}"),
-        Error::Stream { reason } => format!("stream: {reason}"),
+        Error::BridgeOn => "refused while the bridge is on: `cmd disable` first".into(),
+        Error::Storage { reason } => format!("storage: {reason}; nothing was changed"),
+        Error::Command(c) => describe_command(c),
+        Error::Stream { reason } => format!("stream: {reason}{}", stream_hint(*reason)),
         Error::Capture { reason } => format!("capture: {reason}"),
         Error::Test { reason } => format!("test: {reason}"),
-        Error::Busy => "busy".into(),
+        Error::Busy => "busy with a request of this kind; retry".into(),
+        Error::ControlledByAnotherClient => "busy: controlled by another client; this one may only read (info, status, param get/list, watch, telemetry) until that one disconnects".into(),
+    }
+}
+
+fn stream_hint(r: servo_core::protocol::Reason) -> &'static str {
+    use servo_core::protocol::Reason as R;
+    match r {
+        R::RefusedFaultsLatched => "; `status` names them: `cmd clear-faults`, then `cmd enable`",
+        R::RefusedNotRunning => "; `cmd enable` first (`status` shows the mode and any faults: `cmd clear-faults` clears them)",
+        R::RefusedNotHomed => "; `cmd startup` (or `cmd home`) first",
+        R::RefusedNotCommutated | R::RefusedNotCalibrated => "; `cmd startup` first",
+        R::RefusedMoveInProgress => "; wait for the move (`status`) or `cmd stop`",
+        R::StreamGap => "; start the stream again (its first point is reached from where the rod is)",
+        _ => "",
+    }
+}
+
+/// A refused command, with the command to try next.
+pub fn describe_command(c: &servo_core::CommandError) -> String {
+    use servo_core::CommandError as E;
+    let names = |f: &servo_core::FaultSet| f.names().collect::<Vec<_>>().join(", ");
+    match c {
+        E::Faulted(f) => format!("faults latched ({}): `cmd clear-faults`, then `cmd enable`", names(f)),
+        E::CauseStillPresent(f) => format!("faults whose cause is still present ({}): `status` shows the readouts; remove the cause, then `cmd clear-faults`", names(f)),
+        E::NotRunning => "the drive is not running: `cmd enable` (if `status` shows faults, `cmd clear-faults` first)".into(),
+        E::NotDisabled => "needs the bridge off: `cmd disable` first".into(),
+        E::Busy => "a move or start-up step is in progress: wait for it (`status`) or `cmd stop`".into(),
+        E::NotFinite => "an argument is not a finite number".into(),
+        E::OutOfRange => "an argument is beyond its bound".into(),
+        E::BusLow => "the bus voltage is below control.faults.bus_undervoltage_v: check the supply (`status` shows it)".into(),
+        E::NotCalibrated => "current offsets not calibrated: `cmd startup` (or `cmd calibrate`) first".into(),
+        E::NotCommutated => "the motor is not commutated: `cmd startup` (calibration, commutation, homing) first".into(),
+        E::NotHomed => "the axis is not homed: `cmd startup` or `cmd home` (or `set-home POSITION_M` on a rig with a known reference) first".into(),
     }
 }

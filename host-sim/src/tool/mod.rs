@@ -6,9 +6,12 @@ pub mod analysis;
 pub mod bench;
 pub mod bench_gain;
 pub mod client;
+pub mod config_file;
 pub mod params;
 pub mod stream;
+pub mod stream_loss;
 pub mod test;
+pub mod view;
 
 use crate::config::RigConfig;
 use crate::drive::{self, DriveOptions, Pace};
@@ -86,23 +89,63 @@ pub enum DriveCmd {
         #[arg(long)]
         stream_period_s: Option<f64>,
     },
-    /// Who the drive is, its schema, mode and faults.
+    /// Who the drive is, its schema, mode, faults and saved record.
     Info,
-    /// Mode, faults, readiness, drive time.
-    Status,
+    /// Mode, faults by name, readiness, position, speed, currents, bus,
+    /// temperatures, the saved record, and the next command to try.
+    /// Exits non-zero while faults are latched.
+    Status {
+        #[arg(long)]
+        json: bool,
+    },
+    /// A live view of the drive (read-only; q or Esc ends it).
+    Watch {
+        /// Refresh rate, Hz.
+        #[arg(long, default_value_t = 20.0)]
+        rate_hz: f64,
+        /// End after this many seconds (0: until q).
+        #[arg(long, default_value_t = 0.0)]
+        seconds: f64,
+    },
+    /// Record every telemetry field to a CSV.
+    Telemetry {
+        #[arg(long)]
+        csv: PathBuf,
+        #[arg(long, default_value_t = 100)]
+        rate_hz: u16,
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+    },
     #[command(subcommand)]
     Param(ParamCmd),
     /// enable | disable | calibrate | align | home | startup | stop | clear-faults | comp on|off
     Cmd { name: String, arg: Option<String> },
     /// A planned move to POSITION_M.
-    Move { position_m: f64 },
+    Move {
+        #[arg(allow_negative_numbers = true)]
+        position_m: f64,
+    },
+    /// A planned move by DISTANCE_M from where the reference is.
+    Jog {
+        #[arg(allow_negative_numbers = true)]
+        distance_m: f64,
+    },
+    /// Declares the present position to be POSITION_M (homes the axis on a
+    /// rig with a known reference).
+    SetHome {
+        #[arg(allow_negative_numbers = true)]
+        position_m: f64,
+    },
     /// Stream setpoints from a CSV (t_s, position_m, velocity_m_s[, force_n]).
     Stream {
         file: PathBuf,
         /// Send back to back instead of at the CSV's times (for a
-        /// fast-paced simulated drive).
+        /// fast-paced simulated drive, which takes them at its own rate).
         #[arg(long)]
         asap: bool,
+        /// Where the tracking figures go (summary.json).
+        #[arg(long, default_value = "out/stream")]
+        out: PathBuf,
     },
     /// A step test: capture, summary, plot, simulator prediction.
     Step {
@@ -159,6 +202,14 @@ pub enum DriveCmd {
         #[arg(long)]
         out: PathBuf,
     },
+    /// A stream cut at 0.1 m/s and at the top stream speed, the client
+    /// stopping and the client killed: the stop's figures.
+    BenchStreamLoss {
+        #[arg(long, default_value = "out/bench-stream-loss")]
+        out: PathBuf,
+        #[arg(long)]
+        params: Option<PathBuf>,
+    },
     /// The paper run's motor-side reference streamed at 1 kHz through a
     /// simulated drive over TCP; tracking figures and the capture figure.
     BenchStream {
@@ -171,12 +222,24 @@ pub enum DriveCmd {
 
 #[derive(Subcommand)]
 pub enum ParamCmd {
+    /// Every parameter, `path = value` (enums by name).
     List,
     Get { path: String },
-    Set { path: String, value: String },
+    Set {
+        path: String,
+        #[arg(allow_hyphen_values = true)]
+        value: String,
+    },
+    /// Writes the present set to flash.
     Save,
+    /// Applies the saved record; a bad record is refused, nothing changed.
     Load,
+    /// Applies the image's defaults (flash untouched until `save`).
     Defaults,
+    /// Every parameter to a TOML file (the rig file's `[control]` layout).
+    Export { file: PathBuf },
+    /// Sets the parameters a TOML file gives (all of them or some).
+    Import { file: PathBuf },
 }
 
 pub fn run_cli(a: DriveArgs) -> Result<()> {
@@ -204,6 +267,11 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
             println!("{} rows → {}", log.len(), out.display());
             Ok(())
         }
+        DriveCmd::BenchStreamLoss { out, params } => {
+            let s = stream_loss::run(&RigConfig::load_or_nominal(params.as_ref())?, &out)?;
+            println!("{}", serde_json::to_string_pretty(&s)?);
+            Ok(())
+        }
         DriveCmd::BenchStream { out, params } => {
             let s = bench::run(&RigConfig::load_or_nominal(params.as_ref())?, &out)?;
             println!("{}", serde_json::to_string_pretty(&s)?);
@@ -219,33 +287,120 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
 fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
     match cmd {
         DriveCmd::Info => println!("{}", serde_json::to_string_pretty(&info_json(c)?)?),
-        DriveCmd::Status => println!("{:?}", c.ask(Request::Status)?),
-        DriveCmd::Param(p) => match p {
-            ParamCmd::List => {
-                for (path, v) in param_list(c)? {
-                    println!("{path} = {}", params::value_text(&v));
+        DriveCmd::Status { json } => {
+            let s = view::status(c)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&view::status_json(&s))?);
+            } else {
+                let per_rad = fetch_one_f32(c, "drive_train.screw_lead_m").map(|l| l / std::f32::consts::TAU);
+                for (k, v) in view::status_lines(&s, per_rad) {
+                    println!("{k:<12} {v}");
                 }
             }
-            ParamCmd::Get { path } => println!("{}", params::value_text(&param_get(c, &path)?)),
-            ParamCmd::Set { path, value } => println!("{path} = {}", params::value_text(&param_set(c, &path, &value)?)),
-            ParamCmd::Save => println!("{:?}", c.ask(Request::Save)?),
-            ParamCmd::Load => println!("{:?}", c.ask(Request::Load)?),
-            ParamCmd::Defaults => println!("{:?}", c.ask(Request::Defaults)?),
+            if s.faults != 0 {
+                bail!("faults latched: {}; next: {}", view::fault_names(s.faults).join(", "), view::next_step(&s));
+            }
+        }
+        DriveCmd::Watch { rate_hz, seconds } => {
+            let n = view::watch(c, rate_hz, seconds)?;
+            eprintln!("{n} refreshes");
+        }
+        DriveCmd::Telemetry { csv, rate_hz, seconds } => {
+            let n = view::telemetry_csv(c, &csv, rate_hz, seconds)?;
+            println!("{n} records → {}", csv.display());
+            if n == 0 {
+                bail!("no telemetry arrived in {seconds} s");
+            }
+        }
+        DriveCmd::Param(p) => match p {
+            ParamCmd::List => {
+                for line in config_file::list_lines(&param_list(c)?) {
+                    println!("{line}");
+                }
+            }
+            ParamCmd::Get { path } => {
+                let full = params::full_path(&path);
+                println!("{}", params::value_text_at(&full, &param_get(c, &path)?));
+            }
+            ParamCmd::Set { path, value } => {
+                let full = params::full_path(&path);
+                println!("{full} = {}", params::value_text_at(&full, &param_set(c, &path, &value)?));
+            }
+            ParamCmd::Save => {
+                c.ask(Request::Save)?;
+                println!("saved");
+            }
+            ParamCmd::Load => match c.ask(Request::Load)? {
+                Reply::Loaded { note, .. } => println!("loaded: {note}"),
+                r => bail!("Load answered with {r:?}"),
+            },
+            ParamCmd::Defaults => {
+                c.ask(Request::Defaults)?;
+                println!("image defaults applied (`param save` writes them to flash)");
+            }
+            ParamCmd::Export { file } => {
+                let n = config_file::export(c, &file)?;
+                println!("{n} parameters → {}", file.display());
+            }
+            ParamCmd::Import { file } => {
+                let changed = config_file::import(c, &file)?;
+                println!("{} parameters changed from {} ({})", changed.len(), file.display(), changed.join(", "));
+            }
         },
-        DriveCmd::Cmd { name, arg } => println!("{:?}", command(c, &name, arg.as_deref())?),
-        DriveCmd::Move { position_m } => println!("{:?}", c.ask(Request::Command(DriveCommand::MoveTo { position_m: position_m as f32 }))?),
-        DriveCmd::Stream { file, asap } => {
+        DriveCmd::Cmd { name, arg } => println!("{}", reply_text(&command(c, &name, arg.as_deref())?)),
+        DriveCmd::Move { position_m } => println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::MoveTo { position_m: position_m as f32 }))?)),
+        DriveCmd::Jog { distance_m } => println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::Jog { distance_m: distance_m as f32 }))?)),
+        DriveCmd::SetHome { position_m } => {
+            println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::SetHome { position_m: position_m as f32 }))?))
+        }
+        DriveCmd::Stream { file, asap, out } => {
             let rows = stream::read_csv(&file)?;
-            let r = stream::send(c, &rows, !asap)?;
+            let p = fetch_params(c, &ControlParams::default())?;
+            let period = c.info.as_ref().map_or(0.0, |i| i.stream_period_s);
+            let name = file.display().to_string();
+            stream::check_rows(&name, &rows, &stream::StreamLimits::of(&p, period))?;
+            let r = stream::send_with(c, &rows, !asap, true)?;
             for g in r.grouped() {
-                eprintln!("{}: {g}", file.display());
+                eprintln!("{name}: {g}");
             }
             if let Some(row) = r.aborted_at_row {
-                eprintln!("{}: the drive stopped taking points at row {row}; sending ended there", file.display());
+                eprintln!("{name}: the drive stopped taking points at row {row}; sending ended there");
             }
-            println!("{} of {} points sent over {:.3} s ({:.3} s wall), {} refused or bounded", r.sent, r.rows, r.duration_s, r.wall_s, r.refusals.len());
-            if r.aborted_at_row.is_some() {
-                bail!("stream aborted");
+            let fig = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.1}"));
+            println!(
+                "{} of {} points sent over {:.3} s ({:.3} s wall), {} refused or bounded; following error RMS {} µm, max {} µm ({} records)",
+                r.sent,
+                r.rows,
+                r.duration_s,
+                r.wall_s,
+                r.refusals.len(),
+                fig(r.tracking_rms_um),
+                fig(r.tracking_max_um),
+                r.telemetry_records
+            );
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            let summary = out.join("summary.json");
+            let json = serde_json::json!({
+                "file": name,
+                "rows": r.rows,
+                "sent": r.sent,
+                "duration_s": r.duration_s,
+                "wall_s": r.wall_s,
+                "refusals": r.refusals.len(),
+                "refusal_runs": r.grouped(),
+                "aborted_at_row": r.aborted_at_row,
+                "tracking_rms_um": r.tracking_rms_um,
+                "tracking_max_um": r.tracking_max_um,
+                "telemetry_records": r.telemetry_records,
+                "faults": r.faults,
+            });
+            std::fs::write(&summary, serde_json::to_string_pretty(&json)?)?;
+            println!("figures → {}", summary.display());
+            if !r.faults.is_empty() {
+                bail!("{name}: faults latched: {}; next: `cmd clear-faults`, then `cmd enable`", r.faults.join(", "));
+            }
+            if let Some(first) = r.grouped().first() {
+                bail!("{name}: {} points refused or bounded (first: {first})", r.refusals.len());
             }
         }
         DriveCmd::Step { target, amplitude, duration, out, params } => {
@@ -272,9 +427,30 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             cap.write_csv(&out)?;
             println!("{} signals × {} samples at {:.1} Hz → {}", cap.names.len(), cap.len(), 1.0 / cap.dt_s, out.display());
         }
-        DriveCmd::Serve { .. } | DriveCmd::Log { .. } | DriveCmd::BenchStream { .. } => unreachable!(),
+        DriveCmd::Serve { .. } | DriveCmd::Log { .. } | DriveCmd::BenchStream { .. } | DriveCmd::BenchStreamLoss { .. } => {
+            bail!("not a command for a connected drive")
+        }
     }
     Ok(())
+}
+
+fn fetch_one_f32(c: &mut Client, path: &str) -> Option<f32> {
+    match param_get(c, path).ok()? {
+        Value::F32(v) => Some(v),
+        _ => None,
+    }
+}
+
+/// A successful reply in words.
+pub fn reply_text(r: &Reply) -> String {
+    match r {
+        Reply::Command(servo_core::protocol::CommandReport::Accepted) => "accepted".into(),
+        Reply::Command(servo_core::protocol::CommandReport::ClampedToStroke { position_m }) => {
+            format!("accepted, clamped to the stroke: {position_m} m")
+        }
+        Reply::Ok => "done".into(),
+        r => format!("{r:?}"),
+    }
 }
 
 pub fn info_json(c: &mut Client) -> Result<serde_json::Value> {
@@ -291,6 +467,8 @@ pub fn info_json(c: &mut Client) -> Result<serde_json::Value> {
         "mode": format!("{:?}", i.mode),
         "faults": servo_core::FaultSet::from_bits_retain(i.faults).names().collect::<Vec<_>>(),
         "pwm_frequency_hz": i.pwm_frequency_hz,
+        "boot_record": view::boot_record_text(&i.boot_record),
+        "stream_period_s": if i.stream_period_s > 0.0 { Some(i.stream_period_s) } else { None },
     }))
 }
 
@@ -337,7 +515,7 @@ pub fn param_set(c: &mut Client, path: &str, text: &str) -> Result<Value> {
         Value::Bool(_) => servo_core::protocol::ValueKind::Bool,
         Value::Variant(_) => servo_core::protocol::ValueKind::Variant,
     };
-    let value = params::parse_value(kind, text).map_err(|e| anyhow!("{path}: {e}"))?;
+    let value = params::parse_value_at(&params::full_path(path), kind, text).map_err(|e| anyhow!("{path}: {e}; nothing was sent"))?;
     param_set_value(c, path, value)
 }
 
@@ -369,7 +547,10 @@ pub fn command(c: &mut Client, name: &str, arg: Option<&str>) -> Result<Reply> {
         ("clear-faults", _) => DriveCommand::ClearFaults,
         ("comp", Some("on")) => DriveCommand::SetCompensation { enabled: true },
         ("comp", Some("off")) => DriveCommand::SetCompensation { enabled: false },
-        (n, a) => bail!("unknown command `{n}{}`: enable, disable, calibrate, align, home, startup, stop, clear-faults, comp on|off", a.map(|a| format!(" {a}")).unwrap_or_default()),
+        (n, a) => bail!(
+            "unknown command `{n}{}`: enable, disable, calibrate, align, home, startup, stop, clear-faults, comp on|off (moves: `move`, `jog`, `set-home`)",
+            a.map(|a| format!(" {a}")).unwrap_or_default()
+        ),
     };
     c.ask(Request::Command(cmd))
 }

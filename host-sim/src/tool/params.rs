@@ -38,3 +38,44 @@ pub fn value_text(v: &Value) -> String {
         Value::Variant(i) => format!("{i}"),
     }
 }
+
+/// The serde name of variant `index` of the enum leaf at `path` (as the rig
+/// file writes it, e.g. `HardStop`), found by setting it on a copy of the
+/// defaults and reading the serialised field back.
+pub fn variant_name(path: &str, index: u8) -> Option<String> {
+    let mut p = servo_core::params::ControlParams::default();
+    servo_core::protocol::params::set(&mut p, path, Value::Variant(index)).ok()?;
+    let json = serde_json::to_value(p).ok()?;
+    let mut at = &json;
+    for part in path.trim_start_matches("control.").split('.') {
+        at = at.get(part)?;
+    }
+    at.as_str().map(str::to_string)
+}
+
+/// The variant index named `name` (or given as its index) for `path`.
+pub fn variant_index(path: &str, name: &str) -> Option<u8> {
+    if let Ok(i) = name.parse::<u8>() {
+        return variant_name(path, i).map(|_| i);
+    }
+    (0..=u8::MAX).map_while(|i| variant_name(path, i).map(|n| (i, n))).find(|(_, n)| n == name).map(|(i, _)| i)
+}
+
+/// A value as `param list` prints it: enums by name.
+pub fn value_text_at(path: &str, v: &Value) -> String {
+    match v {
+        Value::Variant(i) => variant_name(path, *i).unwrap_or_else(|| format!("{i}")),
+        v => value_text(v),
+    }
+}
+
+/// Parses `text` for the leaf at `path`: enums by name or index.
+pub fn parse_value_at(path: &str, kind: ValueKind, text: &str) -> Result<Value, String> {
+    if kind == ValueKind::Variant {
+        let names: Vec<String> = (0..=u8::MAX).map_while(|i| variant_name(path, i)).collect();
+        return variant_index(path, text.trim())
+            .map(Value::Variant)
+            .ok_or_else(|| format!("`{text}` is not one of {}", names.join(", ")));
+    }
+    parse_value(kind, text)
+}

@@ -64,6 +64,106 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
+/// What the drive takes, for checking a CSV before anything is sent.
+#[derive(Clone, Copy, Debug)]
+pub struct StreamLimits {
+    pub stroke_min_m: f64,
+    pub stroke_max_m: f64,
+    pub velocity_max_m_s: f64,
+    pub force_max_n: f64,
+    /// The drive's stream period (s), if it expects one; else any interval
+    /// from `interval_min_s` to `interval_max_s`.
+    pub period_s: Option<f64>,
+    pub interval_min_s: f64,
+    pub interval_max_s: f64,
+}
+
+impl StreamLimits {
+    pub fn of(p: &servo_core::ControlParams, period_s: f32) -> Self {
+        Self {
+            stroke_min_m: f64::from(p.limits.stroke_min_m),
+            stroke_max_m: f64::from(p.limits.stroke_max_m),
+            velocity_max_m_s: f64::from(p.trajectory.max_velocity_m_s),
+            force_max_n: f64::from(p.thrust_peak_n()),
+            period_s: (period_s > 0.0).then_some(f64::from(period_s)),
+            interval_min_s: f64::from(p.position_period_s()),
+            interval_max_s: f64::from(p.stream.period_max_s),
+        }
+    }
+}
+
+/// A row's stated velocity may differ from its position steps by this
+/// (m/s) plus `VELOCITY_AGREEMENT_REL` of it: the trapezoid rule's error on
+/// a jerk-limited path at 100 Hz is ≈ 2e-4 m/s.
+pub const VELOCITY_AGREEMENT_M_S: f64 = 0.01;
+pub const VELOCITY_AGREEMENT_REL: f64 = 0.05;
+/// A row interval may differ from the drive's stream period by this part.
+pub const PERIOD_TOLERANCE: f64 = 0.02;
+
+/// Checks the rows against what the drive takes: stroke, speed, force,
+/// the interval between rows against the drive's rate, and each row's
+/// velocity against its position step. Every problem names
+/// `file:row:field` and the figures.
+pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
+    let mut errors = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        let row = i + 1;
+        if r.position_m < l.stroke_min_m || r.position_m > l.stroke_max_m {
+            errors.push(format!(
+                "{name}:{row}:position_m: {} m outside the stroke {} … {} m (control.limits.stroke_min_m, stroke_max_m)",
+                r.position_m, l.stroke_min_m, l.stroke_max_m
+            ));
+        }
+        if r.velocity_m_s.abs() > l.velocity_max_m_s {
+            errors.push(format!("{name}:{row}:velocity_m_s: {} m/s beyond control.trajectory.max_velocity_m_s = {} m/s", r.velocity_m_s, l.velocity_max_m_s));
+        }
+        if let Some(f) = r.force_n {
+            if f.abs() > l.force_max_n {
+                errors.push(format!("{name}:{row}:force_n: {f} N beyond the motor's peak thrust {:.0} N", l.force_max_n));
+            }
+        }
+        if i == 0 {
+            continue;
+        }
+        let prev = &rows[i - 1];
+        let dt = r.t_s - prev.t_s;
+        match l.period_s {
+            Some(t) if (dt - t).abs() > PERIOD_TOLERANCE * t => errors.push(format!(
+                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {dt}",
+                dt * 1e3,
+                t * 1e3,
+                1.0 / t
+            )),
+            None if dt < l.interval_min_s * (1.0 - PERIOD_TOLERANCE) || dt > l.interval_max_s * (1.0 + PERIOD_TOLERANCE) => errors.push(format!(
+                "{name}:{row}:t_s: a step of {:.3} ms; the drive takes {:.3} … {:.3} ms (position-loop period … control.stream.period_max_s)",
+                dt * 1e3,
+                l.interval_min_s * 1e3,
+                l.interval_max_s * 1e3
+            )),
+            _ => {}
+        }
+        if dt > 0.0 {
+            let step = (r.position_m - prev.position_m) / dt;
+            let mean = 0.5 * (r.velocity_m_s + prev.velocity_m_s);
+            if (step - mean).abs() > VELOCITY_AGREEMENT_M_S + VELOCITY_AGREEMENT_REL * mean.abs() {
+                errors.push(format!(
+                    "{name}:{row}:velocity_m_s: the position step from row {} is {:.4} m/s ({:.3} mm in {:.3} ms), the velocity column says {:.4} m/s (mean of the two rows)",
+                    row - 1,
+                    step,
+                    (r.position_m - prev.position_m) * 1e3,
+                    dt * 1e3,
+                    mean
+                ));
+            }
+        }
+    }
+    if !errors.is_empty() {
+        let more = if errors.len() > 20 { format!("\n… and {} more", errors.len() - 20) } else { String::new() };
+        bail!("{}{more}\nnothing was sent to the drive", errors.iter().take(20).cloned().collect::<Vec<_>>().join("\n"));
+    }
+    Ok(())
+}
+
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct StreamReport {
     pub rows: usize,
@@ -75,6 +175,13 @@ pub struct StreamReport {
     /// The drive stopped taking points (faulted, disabled): sending ended
     /// at this row.
     pub aborted_at_row: Option<usize>,
+    /// Following error (position reference − motor position) over the
+    /// telemetry records received while streaming, µm.
+    pub tracking_rms_um: Option<f64>,
+    pub tracking_max_um: Option<f64>,
+    pub telemetry_records: usize,
+    /// Faults latched at the end of the stream, by name.
+    pub faults: Vec<String>,
 }
 
 impl StreamReport {
@@ -94,15 +201,18 @@ impl StreamReport {
     }
 }
 
+/// Telemetry rate for the tracking figures (fits a 115 200 Bd link).
+pub const TRACKING_RATE_HZ: u16 = 250;
+
 /// A refusal after which further points are pointless.
 fn stops_stream(r: &Reply) -> bool {
-    use servo_core::protocol::Error;
+    use servo_core::protocol::{Error, Reason as R};
     use servo_core::CommandError as E;
     match r {
-        Reply::Error(Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed)) => true,
-        // The core server's wording for the same refusals.
+        Reply::Error(Error::Command(E::NotRunning | E::Faulted(_) | E::NotHomed | E::NotCommutated)) => true,
+        Reply::Error(Error::ControlledByAnotherClient) => true,
         Reply::Error(Error::Stream { reason }) => {
-            ["faults latched", "not running", "not homed", "not commutated"].iter().any(|w| reason.text().contains(w))
+            matches!(reason, R::RefusedFaultsLatched | R::RefusedNotRunning | R::RefusedNotHomed | R::RefusedNotCommutated | R::StreamGap)
         }
         _ => false,
     }
@@ -112,6 +222,18 @@ fn stops_stream(r: &Reply) -> bool {
 /// wall clock; else back to back (a fast-paced simulated drive steps one
 /// stream period per frame). Ends with `Stop` (the drive holds).
 pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamReport> {
+    send_with(client, rows, paced, false)
+}
+
+/// `send`; `track`: with the tracking figures, from telemetry the stream
+/// asks for itself (any earlier telemetry setting is replaced, then off).
+pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) -> Result<StreamReport> {
+    use servo_core::protocol::TelemetryField as F;
+    let fields = (1 << F::PositionReference as u32) | (1 << F::MotorPosition as u32) | (1 << F::Faults as u32);
+    let tracking = track && client.ask(Request::Telemetry { fields, rate_hz: TRACKING_RATE_HZ }).is_ok();
+    if tracking {
+        client.telemetry.clear();
+    }
     let t0 = Instant::now();
     let mut seq_row = HashMap::new();
     let mut aborted_at_row = None;
@@ -130,6 +252,7 @@ pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamRepo
                 }
             }
         } else if i % 16 == 0 {
+            // A look, not a wait: back to back means at the drive's rate.
             client.poll(Duration::ZERO)?;
         }
         let p = StreamPoint {
@@ -142,13 +265,30 @@ pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamRepo
     }
     // End the stream, collecting any late refusals on the way.
     let end = client.request(Request::Command(DriveCommand::Stop));
+    let wall_s = t0.elapsed().as_secs_f64();
+    let mut errs: Vec<f64> = Vec::new();
+    if tracking {
+        errs = client.telemetry.drain(..).map(|t| f64::from(t.values[0]) - f64::from(t.values[1])).collect();
+        client.request(Request::Telemetry { fields: 0, rate_hz: 0 })?;
+        client.telemetry.clear();
+    }
+    let faults = match client.request(Request::Status)? {
+        Reply::Status(s) => servo_core::FaultSet::from_bits_retain(s.faults).names().map(str::to_string).collect(),
+        _ => vec![],
+    };
+    let rms = (!errs.is_empty()).then(|| (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt() * 1e6);
+    let max = (!errs.is_empty()).then(|| errs.iter().fold(0.0f64, |m, e| m.max(e.abs())) * 1e6);
     let mut report = StreamReport {
         rows: rows.len(),
         sent: seq_row.len(),
         aborted_at_row,
         duration_s: rows.last().map_or(0.0, |r| r.t_s) - rows[0].t_s,
-        wall_s: t0.elapsed().as_secs_f64(),
+        wall_s,
         refusals: vec![],
+        tracking_rms_um: rms,
+        tracking_max_um: max,
+        telemetry_records: errs.len(),
+        faults,
     };
     for u in client.unsolicited.drain(..) {
         let row = seq_row.get(&u.seq).copied().unwrap_or(0);
