@@ -11,6 +11,7 @@ use core::f32::consts::PI;
 pub mod leaves;
 mod lifecycle;
 mod live;
+pub mod rating;
 pub mod record;
 pub mod stream;
 mod validate;
@@ -18,6 +19,7 @@ pub mod value;
 pub use lifecycle::*;
 pub use stream::{StreamParams, LEGS};
 pub use value::{Value, ValueKind};
+pub use rating::{PowerStageRating, RatingLowered};
 pub use validate::{ParamError, ValidatedParams};
 
 use serde::{Deserialize, Serialize};
