@@ -80,21 +80,21 @@ enum Cmd {
         family: Option<PathBuf>,
     },
     Train(host_sim::trainer::TrainArgs),
-    /// Diagnose the sim-to-real gap of a measured log (issue 4): where it
+    /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
-    /// The drive protocol (issue 11): `drive serve` runs a simulated drive on
+    /// The drive protocol: `drive serve` runs a simulated drive on
     /// a TCP socket; the other subcommands are the host tool, talking to a
     /// board (--port) or a simulated drive (--tcp). docs/host-tool.md.
     Drive(host_sim::tool::DriveArgs),
-    /// Tuning from identification (issue 11 items 7-8): identify inertia,
+    /// Tuning from identification: identify inertia,
     /// friction, R and L from captures; propose gains for asked bandwidths
     /// and phase margin; check them on the simulator. docs/tuning.md.
     Tune(host_sim::tuning::cli::TuneArgs),
     /// Observer training data: the paper's cycle at several tilt swings and
     /// payloads, closed loop; one run per leg. Writes DIR/dataset.csv and
     /// DIR/summary.json.
-    /// The 6-DOF platform (issue 12): kinematics along pose trajectories,
+    /// The 6-DOF platform: kinematics along pose trajectories,
     /// leg forces, the Table 4 reproduction. Writes summary.json,
     /// table4.md, geometry.png and per-trajectory plots.
     Platform {

@@ -9,7 +9,7 @@ fn sample(count: u16) -> SensorSample {
 
 #[test]
 fn set_home_moves_the_user_frame_not_the_electrical_angle() {
-    // On the code before issue 10, SetHome shifted the count the angle is
+    // A SetHome that shifted the count the angle is
     // taken from: homing to 0.1234 m turned it by ≈ 259° electrical.
     let mut c = Controller::new(ControlParams::DEFAULT.commissioned());
     for k in 0..100u16 {

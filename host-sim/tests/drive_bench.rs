@@ -1,5 +1,5 @@
 //! `drive bench-stream`: the paper run's reference streamed at 1 kHz
-//! through the simulated drive over TCP meets issue 11's bar (the planned
+//! through the simulated drive over TCP meets the tracking bar (the planned
 //! move's: motor-side tracking RMS ≤ 5 µm, max ≤ 50 µm), with no refusal.
 
 use host_sim::config::RigConfig;

@@ -38,3 +38,33 @@ fn ten_homings_land_within_2_um() {
     assert_eq!(zeros.len(), 10);
     assert!((hi - lo) * 1e6 <= 2.0, "homing spread {:.3} µm", (hi - lo) * 1e6);
 }
+
+/// The commutation check holds on the rigs a second unit could be (the
+/// family's five corners): a right pole count reads within ±5 % of 1, a
+/// wrong one (the drive believes 5, the motor has 4: 1.25) is caught at
+/// the midpoint threshold, and a mirrored phase sequence is caught before
+/// the dither could tip its unstable hold; no rod drops more than 0.5 mm.
+#[test]
+fn the_commutation_check_keeps_its_margin_on_the_family_corners() {
+    let base = RigConfig::nominal().unwrap();
+    let cases = suite(1, 0.01, 0.05, base.plant.screw.lead_m, 3);
+    let picked: Vec<_> = cases
+        .iter()
+        .filter(|c| matches!(c.failure, Failure::None | Failure::WrongPolePairs | Failure::SwappedPhases))
+        .collect();
+    let corners = host_sim::rigs::Draw::corners(&host_sim::rigs::FamilySpec::default());
+    let base = &base;
+    let picked = &picked;
+    let runs: Vec<_> = corners.iter().flat_map(|(name, d)| picked.iter().map(move |c| (*name, d.apply(base), *c))).collect();
+    let rows = runs.par_iter().map(|(n, rig, c)| run_case(rig, c).map(|r| (*n, r))).collect::<anyhow::Result<Vec<_>>>().unwrap();
+    for (rig, r) in &rows {
+        println!("{rig:16} {:14} ratio {:.4} drop {:.4} mm {:?}", r.name, r.rotation_ratio, r.rod_drop_max_mm, r.faults);
+        assert!(r.passed, "{rig} {}: {}", r.name, r.verdict);
+        assert!(r.rod_drop_max_mm <= 0.5, "{rig} {}", r.name);
+        match r.failure {
+            Failure::None => assert!((r.rotation_ratio - 1.0).abs() <= 0.05, "{rig}: ratio {}", r.rotation_ratio),
+            Failure::WrongPolePairs => assert!(r.rotation_ratio > 0.5 * (1.0 + 5.0 / 4.0), "{rig}: ratio {}", r.rotation_ratio),
+            _ => assert!(r.rotation_ratio < 0.0, "{rig}: ratio {}", r.rotation_ratio),
+        }
+    }
+}

@@ -377,7 +377,11 @@ fn a_set_beyond_the_hardware_rating_is_refused_naming_the_leaf() {
     let (mut d, mut s) = (MockDrive::running(), MemStore::default());
     // A power stage rated below the set's limit; the ask is a valid set
     // (below the trip) that this stage cannot carry.
-    d.hardware_current_max_a = Some(d.params.limits.current_max_a * 0.8);
+    d.rating = Some(servo_core::params::PowerStageRating {
+        bus_max_v: d.params.faults.bus_overvoltage_v,
+        current_max_a: d.params.limits.current_max_a * 0.8,
+        overcurrent_trip_max_a: d.params.faults.overcurrent_trip_a,
+    });
     let i = idx("control.limits.current_max_a");
     let before = (d.params, d.applied);
     let asked = d.params.limits.current_max_a * 0.9;

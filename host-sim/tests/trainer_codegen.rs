@@ -91,7 +91,7 @@ fn probe_crate(dir: &Path, model_src: &str, probes: &[[f32; N_INPUTS]]) {
         dir.join("Cargo.toml"),
         format!(
             "[package]\nname = \"codegen-probe\"\nversion = \"0.0.0\"\nedition = \"2021\"\n\n[dependencies]\n\
-             servo-core = {{ package = \"cylinder-servo\", path = {:?}, default-features = false }}\n\n[workspace]\n",
+             servo-core = {{ path = {:?}, default-features = false }}\n\n[workspace]\n",
             core.canonicalize().unwrap().display().to_string()
         ),
     )

@@ -110,8 +110,7 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
         // At power-up a saved set is lowered to the board's ratings (and the
         // log says so); a set sent or loaded while running is refused
         // instead, naming the leaf: nothing is clamped behind the user.
-        let (_, lowered) = crate::board::b_g431b_esc1::apply_board_limits(*params.get());
-        if let Some(leaf) = lowered.first_leaf() {
+        if let Some(leaf) = self.board.get_mut().rating().exceeded_by(params.get()) {
             return Err(ApplyError::BeyondHardware { leaf });
         }
         match self.board.get_mut().apply_params(params) {

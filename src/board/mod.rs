@@ -12,7 +12,8 @@
 //! Add `src/board/<name>/` with the same public surface as
 //! [`b_g431b_esc1`]:
 //!
-//! - `NAME`, `PARAMS`, `clock_config()`, `apply_board_limits()` (a `const fn`),
+//! - `NAME`, `PARAMS`, `RATING` (the power stage's), `clock_config()`,
+//!   `apply_board_limits()` (a `const fn`, `RATING.lower`),
 //!   `BRAKE` (the brake pin) and `brake::force_closed()`;
 //! - `Board::new(peripherals, pwm_frequency_hz) -> Result<Board, BoardError>`;
 //! - an implementation of [`ServoBoard`] for `Board`;
@@ -92,6 +93,9 @@ pub trait ServoBoard {
     /// steps (through the link); what it answered.
     fn bulk(&mut self, payload: link::BulkIn) -> Result<link::BulkOut, link::LinkError>;
     fn set_led(&mut self, on: bool);
+    /// The power stage's rating: a parameter set sent or loaded while
+    /// running that asks more is refused, naming the leaf.
+    fn rating(&self) -> servo_core::params::PowerStageRating;
     /// The user button, debounced by the caller.
     fn button_pressed(&self) -> bool;
 }

@@ -46,14 +46,14 @@ impl Controller {
             } else {
                 0
             };
-            self.mode = Mode::Fault;
+            self.set_mode(Mode::Fault);
             return;
         }
         match self.mode {
             Mode::Running | Mode::Homing | Mode::Preloading => self.begin_stop(),
             // Already decelerating to rest.
             Mode::Stopping | Mode::Braking => {}
-            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.mode = Mode::Fault,
+            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.set_mode(Mode::Fault),
         }
     }
 
@@ -72,7 +72,7 @@ impl Controller {
         self.compensator.reset();
         self.homing_backing_off = false;
         self.stream.stop();
-        self.mode = Mode::Stopping;
+        self.set_mode(Mode::Stopping);
     }
 
     /// The outer-rate checks, then every new condition latched.

@@ -130,12 +130,12 @@ impl Controller {
                     let v = self.speed_rad_s() * self.params.metres_per_rad();
                     self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
                     self.brake_periods = 0;
-                    self.mode = Mode::Braking;
+                    self.set_mode(Mode::Braking);
                 } else if self.mode == Mode::Aligning {
                     // The commutation holds its vector while the brake closes.
                     return Err(CommandError::Busy);
                 } else if self.mode != Mode::Braking {
-                    self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+                    self.set_mode(if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault });
                     self.reset_loops();
                 }
                 Ok(CommandOutcome::Accepted)
@@ -257,12 +257,12 @@ impl Controller {
                 }
                 self.faults = FaultSet::NONE;
                 match self.mode {
-                    Mode::Fault => self.mode = Mode::Disabled,
+                    Mode::Fault => self.set_mode(Mode::Disabled),
                     Mode::Stopping => {
                         // Resume position control where the stop left it.
                         self.trajectory = ScurveMove::hold(self.position_command_m);
                         self.restart_move();
-                        self.mode = Mode::Running;
+                        self.set_mode(Mode::Running);
                     }
                     _ => {}
                 }
@@ -305,7 +305,7 @@ impl Controller {
             Mode::Braking => {
                 self.hold_here();
                 self.brake_periods = self.derived.brake_preload_periods;
-                self.mode = Mode::Running;
+                self.set_mode(Mode::Running);
                 return Ok(CommandOutcome::Accepted);
             }
             Mode::Disabled => {
@@ -317,7 +317,7 @@ impl Controller {
             }
             _ => return Err(CommandError::Busy),
         }
-        self.mode = if self.params.brake.fitted { Mode::Preloading } else { Mode::Running };
+        self.set_mode(if self.params.brake.fitted { Mode::Preloading } else { Mode::Running });
         Ok(CommandOutcome::Accepted)
     }
 
@@ -387,7 +387,7 @@ impl Controller {
             self.commanded_stop = true;
         }
         if self.mode == Mode::Homing {
-            self.mode = Mode::Running;
+            self.set_mode(Mode::Running);
         }
         Ok(CommandOutcome::Accepted)
     }
@@ -439,13 +439,13 @@ impl Controller {
 
     pub(super) fn begin_calibration(&mut self) {
         self.calibration = CurrentCalibration::new(self.derived.calibration_samples);
-        self.mode = Mode::Calibrating;
+        self.set_mode(Mode::Calibrating);
     }
 
     pub(super) fn begin_commutation(&mut self) {
         self.reset_loops();
         self.commutation = Commutation::new();
-        self.mode = Mode::Aligning;
+        self.set_mode(Mode::Aligning);
     }
 
     pub(super) fn begin_homing(&mut self) {
@@ -453,7 +453,7 @@ impl Controller {
         self.stream.stop();
         self.homing = Homing::new(self.motor_position_m());
         self.homing_backing_off = false;
-        self.mode = Mode::Homing;
+        self.set_mode(Mode::Homing);
     }
 
     /// Forgets what a fault made untrustworthy.

@@ -57,7 +57,7 @@ impl Controller {
                     *total += residual;
                 }
                 self.readiness.insert(Readiness::CURRENTS_CALIBRATED);
-                self.mode = Mode::Disabled;
+                self.set_mode(Mode::Disabled);
                 self.next_start_up_step();
             }
             CalibrationResult::Failed => self.raise(FaultSet::CALIBRATION_FAILED),
@@ -89,7 +89,7 @@ impl Controller {
                     self.start_holding(r.current_q_a);
                     self.hold_current_q_a = r.current_q_a;
                     self.brake_periods = u32::MAX;
-                    self.mode = Mode::Running;
+                    self.set_mode(Mode::Running);
                     self.next_start_up_step();
                     let rotor = self.rotor_state();
                     return self.current_period(s, rotor);
@@ -119,7 +119,7 @@ impl Controller {
     pub(super) fn homing_tick(&mut self) {
         if self.mode == Mode::Homing && self.homing_backing_off && !self.move_in_progress() {
             self.homing_backing_off = false;
-            self.mode = Mode::Running;
+            self.set_mode(Mode::Running);
             self.next_start_up_step();
         }
     }

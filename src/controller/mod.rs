@@ -1,11 +1,14 @@
 //! The drive: one `step` per PWM period, from a sensor sample to three duties.
 //!
-//! Three rooms, one job each:
-//! - `commands.rs`: the mode machine and the commands that move it;
+//! One job per file:
+//! - `mode.rs`: the mode machine, the one table of allowed transitions;
+//! - `commands.rs`: the commands, which ask the mode machine to move;
 //! - `lifecycle.rs`: the start-up steps (calibration, commutation, homing);
 //! - `cascade.rs`: the position → speed → current loops;
-//! - `checks.rs`: the protection checks that turn a sample into faults, and
-//!   `reactions.rs`: what a fault or a `Disable` does to the bridge and brake.
+//! - `checks.rs`: the protection checks that turn a sample into faults;
+//! - `reactions.rs`: what a fault or a `Disable` does to the bridge and brake;
+//! - `params_apply.rs`: a new parameter set taken live or with the bridge off;
+//! - `scope.rs`: the capture and the test signals.
 //!
 //! `step` reads as one page: ticks → checks → the mode's period → telemetry.
 
@@ -13,6 +16,7 @@ mod cascade;
 mod checks;
 mod commands;
 mod lifecycle;
+pub mod mode;
 mod params_apply;
 mod reactions;
 mod scope;
@@ -223,6 +227,10 @@ pub struct Controller {
     // ---- scope and test signals (`scope.rs`) ----
     test: TestRun,
     capture: Capture,
+    /// Every mode transition taken since creation (`mode::transition_bit`).
+    transitions_taken: u128,
+    /// Every transition asked for and refused by the mode machine.
+    transitions_refused: u128,
 }
 
 /// `Controller::hooks` bits.
@@ -240,7 +248,7 @@ impl Controller {
                 let mut c = Self::build(ControlParams::DEFAULT);
                 c.faults = FaultSet::INVALID_PARAMS;
                 c.present = FaultSet::INVALID_PARAMS;
-                c.mode = Mode::Fault;
+                c.set_mode(Mode::Fault);
                 c.params = params;
                 c
             }
@@ -332,6 +340,8 @@ impl Controller {
             commanded_stop: false,
             test: TestRun::new(),
             capture: Capture::new(),
+            transitions_taken: 0,
+            transitions_refused: 0,
             params,
         }
     }

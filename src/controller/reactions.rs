@@ -35,7 +35,7 @@ impl Controller {
         self.brake_periods = self.brake_periods.saturating_add(self.params.rates.position_loop_divider);
         // The hold current builds with the brake closed; then it lets go.
         if self.mode == Mode::Preloading && self.brake_periods >= self.derived.brake_preload_periods {
-            self.mode = Mode::Running;
+            self.set_mode(Mode::Running);
         }
         if self.mode == Mode::Stopping
             && self.params.brake.fitted
@@ -45,7 +45,7 @@ impl Controller {
             // A degraded motor should not be left holding: once the stop is
             // at rest, hand the load to the brake and switch off.
             self.brake_periods = 0;
-            self.mode = Mode::Braking;
+            self.set_mode(Mode::Braking);
         }
     }
 
@@ -72,7 +72,7 @@ impl Controller {
             if self.current_reference.q.is_finite() {
                 self.hold_current_q_a = self.current_reference.q;
             }
-            self.mode = if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault };
+            self.set_mode(if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault });
             return self.bridge_off();
         }
         let mut out = self.run_period(s, position_tick, speed_tick);

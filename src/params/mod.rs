@@ -12,6 +12,7 @@ pub mod leaves;
 pub mod ranges;
 mod lifecycle;
 mod live;
+pub mod rating;
 pub mod record;
 pub mod stream;
 mod validate;
@@ -19,6 +20,7 @@ pub mod value;
 pub use lifecycle::*;
 pub use stream::{StreamParams, LEGS};
 pub use value::{Value, ValueKind};
+pub use rating::{PowerStageRating, RatingLowered};
 pub use validate::{ParamError, ValidatedParams};
 
 use serde::{Deserialize, Serialize};

@@ -155,6 +155,9 @@ pub struct Info {
     /// position-loop period up to `control.stream.period_max_s` (measured
     /// as the points arrive).
     pub stream_period_s: f32,
+    /// [`PROTOCOL_VERSION`](super::PROTOCOL_VERSION), for humans and logs;
+    /// compatibility is decided by `schema_hash`.
+    pub protocol_version: u16,
 }
 
 /// What became of the saved parameter record at power-up.

@@ -181,6 +181,7 @@ impl Server {
             pwm_frequency_hz: drive.params().rates.pwm_frequency_hz,
             boot_record: self.boot_record,
             stream_period_s: self.stream_period_s,
+            protocol_version: super::PROTOCOL_VERSION,
         })
     }
 

@@ -103,6 +103,7 @@ impl DriveOptions {
 /// `DriveAccess` on the simulated controller, between two steps.
 struct Access<'a> {
     cl: &'a mut ClosedLoop,
+    rating: servo_core::params::PowerStageRating,
 }
 
 impl DriveAccess for Access<'_> {
@@ -119,6 +120,9 @@ impl DriveAccess for Access<'_> {
         self.cl.controller.command(cmd)
     }
     fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {
+        if let Some(leaf) = self.rating.exceeded_by(params.get()) {
+            return Err(ApplyError::BeyondHardware { leaf });
+        }
         self.cl.controller.apply_params(params)
     }
     fn capture(&mut self, request: &CaptureRequest) -> Result<CaptureReply, servo_core::protocol::Reason> {
@@ -182,6 +186,13 @@ impl SimDrive {
             params.startup.homed = d.startup.homed;
             params.encoder.electrical_offset_rad = d.encoder.electrical_offset_rad;
         }
+        // Like the board at power-up: lowered to the power stage's rating,
+        // and said so.
+        let (params, lowered) = rig.plant.inverter.rating().lower(params);
+        let boot_note = match lowered.first_leaf() {
+            Some(_) => format!("{boot_note}; lowered to the power stage's rating: {lowered:?}"),
+            None => boot_note,
+        };
         let controller = servo_core::Controller::try_new(params).map_err(|e| anyhow!("control parameters: {e}"))?;
         let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
         cl.override_pending(servo_core::PwmCommand::OFF);
@@ -317,7 +328,7 @@ impl SimDrive {
 
     /// Handles one request through `server` (a client's).
     pub fn handle_with(&mut self, server: &mut Server, frame: &RequestFrame) -> Option<DriveFrame> {
-        let mut access = Access { cl: &mut self.cl };
+        let mut access = Access { cl: &mut self.cl, rating: self.opts.rig.plant.inverter.rating() };
         let out = server.handle(frame, &mut access, &mut self.store);
         match &frame.request {
             Request::Stream(p) if out.is_none() => {

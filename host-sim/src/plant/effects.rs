@@ -1,6 +1,6 @@
 //! Unmodelled effects a real rig may have and the nominal model lacks: the
 //! hooks that turn the nominal plant into a "truth" rig for the diagnosis
-//! suite (issue 4). Default: none, and the plant is then bit-identical to the
+//! suite. Default: none, and the plant is then bit-identical to the
 //! nominal one (every hook is behind a test of its own parameter, so the
 //! nominal arithmetic is not even touched).
 //!

@@ -30,6 +30,23 @@ pub struct MotorParams {
 pub struct InverterParams {
     /// Bus voltage reported before the first `advance` tells the real one.
     pub nominal_bus_voltage_v: f64,
+    /// The simulated power stage's rating, which the simulated drive holds
+    /// parameter sets to with the board's check (`PowerStageRating`): the
+    /// highest bus voltage, continuous phase current and overcurrent trip.
+    pub rated_bus_max_v: f64,
+    pub rated_current_max_a: f64,
+    pub rated_overcurrent_trip_a: f64,
+}
+
+impl InverterParams {
+    /// The rating as the core's check takes it.
+    pub fn rating(&self) -> servo_core::params::PowerStageRating {
+        servo_core::params::PowerStageRating {
+            bus_max_v: self.rated_bus_max_v as f32,
+            current_max_a: self.rated_current_max_a as f32,
+            overcurrent_trip_max_a: self.rated_overcurrent_trip_a as f32,
+        }
+    }
 }
 
 /// Coupling between rotor and screw (Eq. 11 plus damping).
@@ -239,7 +256,7 @@ impl Default for PlantParams {
                 rotor_inertia_kg_m2: 0.30e-4,
                 viscous_friction_n_m_s_rad: 0.5e-4,
             },
-            inverter: InverterParams { nominal_bus_voltage_v: 48.0 },
+            inverter: InverterParams { nominal_bus_voltage_v: 48.0, rated_bus_max_v: 60.0, rated_current_max_a: 40.0, rated_overcurrent_trip_a: 45.0 },
             coupling: CouplingParams {
                 inertia_kg_m2: 0.02e-4,
                 torsional_stiffness_n_m_rad: 6000.0,

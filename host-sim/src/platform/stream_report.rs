@@ -1,5 +1,5 @@
 //! The streamed six-leg runs `host-sim platform` makes, and the figures
-//! summary.json takes from them (issue 12 item 3).
+//! summary.json takes from them.
 
 use super::six_legs::{RigSpread, SixLegTrace};
 use super::stream::{run_stream, StreamOptions, StreamRun};

@@ -1,4 +1,4 @@
-//! Observer datasets (issue 3): the paper's elongation/contraction cycle run
+//! Observer datasets: the paper's elongation/contraction cycle run
 //! closed-loop at several tilt swings and payloads; every sample holds what
 //! the firmware itself has (encoder speed, nut speed and displacement through
 //! the lead, load force from i_q or the load cell) and, as the target, what

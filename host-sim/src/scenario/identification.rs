@@ -1,4 +1,4 @@
-//! Identification runs for the sim-to-real diagnosis (issue 4): the plant
+//! Identification runs for the sim-to-real diagnosis: the plant
 //! (nominal, or a truth rig with `UnmodelledEffects`) in closed loop with
 //! the firmware's control core, driven through the core's own planner
 //! (`Command::MoveTo`), under a load actuator's force, logged at 1 kHz in

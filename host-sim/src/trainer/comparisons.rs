@@ -1,4 +1,4 @@
-//! Comparison runs of `host-sim train`: the baselines of issue 3 (random
+//! Comparison runs of `host-sim train`: the baselines (random
 //! initialisation, IBAS alone, physics least squares) and the paper's
 //! Table 2 (opposite and mixed splits, length and error models). They
 //! retrain on the same data; the chosen model does not depend on them.
@@ -8,7 +8,7 @@ use super::{train_dataset, TrainOptions, TrainReport};
 use anyhow::Result;
 use serde::Serialize;
 
-/// The baselines of issue 3 on the chosen model's split and size.
+/// The baselines on the chosen model's split and size.
 pub(super) fn baselines(ds: &Dataset, opts: &TrainOptions, chosen: &TrainReport) -> Result<std::collections::BTreeMap<String, f64>> {
     let mut out = std::collections::BTreeMap::new();
     let mut base = opts.clone();

@@ -1,4 +1,4 @@
-//! Tuning from identification (issue 11, items 7 and 8): identify the
+//! Tuning from identification: identify the
 //! mechanics and the winding from captures, propose gains for asked
 //! bandwidths and phase margin, check them on the full plant before they
 //! go to a drive. `host-sim tune …`; docs/tuning.md.

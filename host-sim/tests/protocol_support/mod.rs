@@ -21,9 +21,9 @@ pub struct MockDrive {
     pub refuse: Option<CommandError>,
     pub captures: usize,
     pub tests: usize,
-    /// A power stage's current rating, as a board's `DriveAccess` checks
-    /// it (`src/board/drive.rs`): a set asking more is refused.
-    pub hardware_current_max_a: Option<f32>,
+    /// A power stage's rating, checked with the core's check as a board's
+    /// and the simulated drive's `DriveAccess` do: a set asking more is refused.
+    pub rating: Option<servo_core::params::PowerStageRating>,
 }
 
 impl MockDrive {
@@ -39,7 +39,7 @@ impl MockDrive {
             refuse: None,
             captures: 0,
             tests: 0,
-            hardware_current_max_a: None,
+            rating: None,
         }
     }
 
@@ -81,8 +81,7 @@ impl DriveAccess for MockDrive {
     }
 
     fn apply_params(&mut self, p: &ValidatedParams) -> Result<(), ApplyError> {
-        if self.hardware_current_max_a.is_some_and(|max| p.get().limits.current_max_a > max) {
-            let leaf = servo_core::params::leaves::index_at(core::mem::offset_of!(ControlParams, limits.current_max_a));
+        if let Some(leaf) = self.rating.and_then(|r| r.exceeded_by(p.get())) {
             return Err(ApplyError::BeyondHardware { leaf });
         }
         if !matches!(self.mode, Mode::Disabled | Mode::Fault) {

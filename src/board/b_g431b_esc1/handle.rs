@@ -131,6 +131,10 @@ impl ServoBoard for Board {
         setup::gpio_port(self.led.id()).bsrr().write(|w| if on { w.set_bs(n, true) } else { w.set_br(n, true) });
     }
 
+    fn rating(&self) -> servo_core::params::PowerStageRating {
+        super::RATING
+    }
+
     fn button_pressed(&self) -> bool {
         setup::gpio_port(self.button.id()).idr().read().idr(usize::from(self.button.pin())) == Idr::LOW
     }

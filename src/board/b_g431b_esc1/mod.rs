@@ -65,6 +65,7 @@
 
 use embassy_stm32::interrupt::Priority;
 use embassy_stm32::time::Hertz;
+use servo_core::params::{PowerStageRating, RatingLowered};
 use servo_core::ControlParams;
 
 pub mod brake;
@@ -202,28 +203,16 @@ pub fn enable_flash_acceleration() {
     });
 }
 
-/// What the board clamped in the parameter set.
-#[derive(Clone, Copy, Debug, Default, PartialEq, defmt::Format)]
-pub struct BoardLimitsApplied {
-    pub bus_overvoltage_v: Option<f32>,
-    pub current_max_a: Option<f32>,
-    pub overcurrent_trip_a: Option<f32>,
-}
+/// The ESC1's power stage: its bus rating, the current its MOSFETs and
+/// shunts carry, and the comparator break's trip (`cal.rs`).
+pub const RATING: PowerStageRating = PowerStageRating {
+    bus_max_v: cal::BOARD_MAX_BUS_V,
+    current_max_a: cal::BOARD_MAX_CURRENT_A,
+    overcurrent_trip_max_a: cal::HW_OCP_TRIP_A,
+};
 
-impl BoardLimitsApplied {
-    /// The first leaf that was lowered, if any (for a refusal naming it).
-    pub const fn first_leaf(&self) -> Option<u16> {
-        if self.bus_overvoltage_v.is_some() {
-            Some(servo_core::leaf!(faults.bus_overvoltage_v))
-        } else if self.current_max_a.is_some() {
-            Some(servo_core::leaf!(limits.current_max_a))
-        } else if self.overcurrent_trip_a.is_some() {
-            Some(servo_core::leaf!(faults.overcurrent_trip_a))
-        } else {
-            None
-        }
-    }
-}
+/// What [`apply_board_limits`] lowered.
+pub type BoardLimitsApplied = RatingLowered;
 
 /// Lowers (never raises) the limits of `params` to what this power stage
 /// survives, and says what it lowered. `const`, so the firmware's set is
@@ -231,18 +220,7 @@ impl BoardLimitsApplied {
 /// than the board's may become invalid (undervoltage above overvoltage), and
 /// the build then fails naming the field.
 pub const fn apply_board_limits(params: ControlParams) -> (ControlParams, BoardLimitsApplied) {
-    // NaN counts as "above": it is replaced by the board's rating.
-    const fn lower(value: f32, max: f32) -> (f32, Option<f32>) {
-        if value > max || value.is_nan() { (max, Some(max)) } else { (value, None) }
-    }
-    let mut p = params;
-    let (bus_ov, bus_overvoltage_v) = lower(p.faults.bus_overvoltage_v, cal::BOARD_MAX_BUS_V);
-    let (i_max, current_max_a) = lower(p.limits.current_max_a, cal::BOARD_MAX_CURRENT_A);
-    let (ocp, overcurrent_trip_a) = lower(p.faults.overcurrent_trip_a, cal::HW_OCP_TRIP_A);
-    p.faults.bus_overvoltage_v = bus_ov;
-    p.limits.current_max_a = i_max;
-    p.faults.overcurrent_trip_a = ocp;
-    (p, BoardLimitsApplied { bus_overvoltage_v, current_max_a, overcurrent_trip_a })
+    RATING.lower(params)
 }
 
 /// Why the board could not be brought up. The bridge stays off in every case.
