@@ -10,6 +10,7 @@ use core::f32::consts::PI;
 
 mod defaults;
 pub mod leaves;
+pub mod ranges;
 mod lifecycle;
 mod live;
 pub mod rating;
@@ -323,19 +324,19 @@ pub struct ControlParams {
 impl ControlParams {
     /// Total inertia seen at the motor shaft, with the moving mass reflected
     /// through the lead: `J + m (L/2π)²`.
-    pub fn reflected_inertia_kg_m2(&self) -> f32 {
+    pub const fn reflected_inertia_kg_m2(&self) -> f32 {
         let r = self.drive_train.screw_lead_m / (2.0 * PI);
         self.drive_train.rotating_inertia_kg_m2 + self.drive_train.moving_mass_kg * r * r
     }
 
     /// Torque per q-axis ampere, `1.5 p ψ_f` (surface magnets, `L_d = L_q`).
-    pub fn torque_constant_n_m_a(&self) -> f32 {
+    pub const fn torque_constant_n_m_a(&self) -> f32 {
         1.5 * self.motor.pole_pairs as f32 * self.motor.flux_linkage_wb
     }
 
     /// The rod force the motor's peak current rating gives, N (forward
     /// efficiency): the largest force a stream may ask to feed forward.
-    pub fn thrust_peak_n(&self) -> f32 {
+    pub const fn thrust_peak_n(&self) -> f32 {
         self.torque_constant_n_m_a() * self.ratings.motor_peak_current_a * self.drive_train.screw_efficiency / self.metres_per_rad()
     }
 
@@ -371,7 +372,7 @@ impl ControlParams {
     }
 
     /// Metres of nut travel per motor radian, `L_s / 2π`.
-    pub fn metres_per_rad(&self) -> f32 {
+    pub const fn metres_per_rad(&self) -> f32 {
         self.drive_train.screw_lead_m / (2.0 * PI)
     }
 }
