@@ -5,7 +5,7 @@
 #
 # 1. Instructions per control period on a Cortex-M4F, and the longest PWM
 #    period with a bulk request in it: builds
-#    firmware-tests/examples/cost.rs with the release profile (the
+#    firmware-tests/examples/cost/ with the release profile (the
 #    firmware's: opt-level "s", fat LTO) and runs it in
 #    `qemu-system-arm -machine mps2-an386 -icount shift=7`, where SysTick
 #    counts executed instructions exactly (docs/cost.md explains the method).
