@@ -38,7 +38,7 @@ use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
 use servo_core::capture::CaptureStore;
 use servo_core::observer;
 use servo_core::params::ValidatedParams;
-use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, Signal, TestSignal};
+use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, Signal, TestSignal};
 use servo_core::pi::Pi;
 use servo_core::{ControlParams, Controller, Mode, PwmCommand, SensorSample};
 
@@ -146,6 +146,13 @@ fn sincos_poly(x: f32) -> (f32, f32) {
     servo_core::math::sincos(x)
 }
 
+/// micromath's sin and cos (the design card's crate), behind a call.
+#[inline(never)]
+fn sincos_micromath(x: f32) -> (f32, f32) {
+    use micromath::F32Ext;
+    (x.sin(), x.cos())
+}
+
 // ---- report ----------------------------------------------------------------
 
 struct Row {
@@ -195,7 +202,7 @@ fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats, Stats, Sta
     let mut c = Controller::new(bench);
     static STORE: CaptureStore = CaptureStore::new();
     let cfg = CaptureConfig {
-        signals: heapless::Vec::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or_default(),
+        signals: servo_core::capture::SignalList::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or(servo_core::capture::SignalList::EMPTY),
         decimation: 1,
         samples: 1024,
         pre_trigger: 512,
@@ -297,7 +304,7 @@ fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_period: bool) -
     static STORE: CaptureStore = CaptureStore::new();
     c.attach_capture_store(&STORE);
     let cfg = CaptureConfig {
-        signals: heapless::Vec::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or_default(),
+        signals: servo_core::capture::SignalList::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or(servo_core::capture::SignalList::EMPTY),
         decimation: 1,
         samples: 1024,
         pre_trigger: 512,
@@ -488,6 +495,14 @@ fn main() -> ! {
         "servo_core::math::sincos (f32 polynomial), same angles",
         &each(&m, 997, angle, |x| {
             black_box(sincos_poly(x));
+        }),
+    ));
+    push(row(
+        &m,
+        "micromath_sincosf",
+        "micromath F32Ext sin + cos, same angles",
+        &each(&m, 997, angle, |x| {
+            black_box(sincos_micromath(x));
         }),
     ));
     push(row(

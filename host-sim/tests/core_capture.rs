@@ -7,8 +7,8 @@
 
 use host_sim::config::RigConfig;
 use host_sim::sim::{holding_vertical, ClosedLoop};
-use servo_core::capture::{resolution, CaptureStore};
-use servo_core::protocol::{heapless::Vec, CaptureConfig, CaptureState, CaptureTrigger, Signal};
+use servo_core::capture::{resolution, CaptureStore, SignalList};
+use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, Signal};
 use servo_core::{Controller, FaultSet, Mode};
 
 const X0_M: f64 = 0.25;
@@ -24,7 +24,7 @@ fn holding() -> ClosedLoop {
 }
 
 fn config(signals: &[Signal], decimation: u16, samples: u16, pre_trigger: u16, trigger: CaptureTrigger) -> CaptureConfig {
-    CaptureConfig { signals: Vec::from_slice(signals).unwrap(), decimation, samples, pre_trigger, trigger }
+    CaptureConfig { signals: SignalList::from_slice(signals).unwrap(), decimation, samples, pre_trigger, trigger }
 }
 
 /// Bus voltage of the sample in period `k` (counted from 0 at the first

@@ -5,8 +5,8 @@
 
 use host_sim::config::RigConfig;
 use host_sim::sim::{holding_vertical, ClosedLoop};
-use servo_core::capture::{resolution, CaptureStore};
-use servo_core::protocol::{heapless::Vec, CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
+use servo_core::capture::{resolution, CaptureStore, SignalList};
+use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use servo_core::test_signals::{Chirp, TestPhase};
 use servo_core::{Command, CommandError, Controller, FaultSet, Mode};
 use std::f64::consts::TAU;
@@ -21,7 +21,7 @@ fn holding() -> ClosedLoop {
 }
 
 fn arm(cl: &mut ClosedLoop, signals: &[Signal], decimation: u16, samples: u16, pre_trigger: u16) {
-    let cfg = CaptureConfig { signals: Vec::from_slice(signals).unwrap(), decimation, samples, pre_trigger, trigger: CaptureTrigger::TestStart };
+    let cfg = CaptureConfig { signals: SignalList::from_slice(signals).unwrap(), decimation, samples, pre_trigger, trigger: CaptureTrigger::TestStart };
     cl.controller.capture_configure(&cfg).unwrap();
 }
 
@@ -401,7 +401,7 @@ fn disable_aborts_a_test() {
 fn a_fault_aborts_a_test_and_triggers_its_capture() {
     let mut cl = holding();
     let cfg = CaptureConfig {
-        signals: Vec::from_slice(&[Signal::CurrentDReference, Signal::BusVoltage]).unwrap(),
+        signals: SignalList::from_slice(&[Signal::CurrentDReference, Signal::BusVoltage]).unwrap(),
         decimation: 1,
         samples: 400,
         pre_trigger: 200,

@@ -57,9 +57,9 @@ fn rig_with(field_line: &str, replacement: &str) -> anyhow::Result<RigConfig> {
 fn out_of_range_parameters_are_refused_at_load_time_by_name() {
     let cases = [
         ("kp = 0.46675092", "kp = -0.46675092", "control.speed_pi.kp"),
-        ("current_max_a = 36.0", "current_max_a = 38.0", "control.limits.current_max_a"),
+        ("\ncurrent_max_a = 36.0", "\ncurrent_max_a = 38.0", "control.limits.current_max_a"),
         ("bus_overvoltage_v = 60.0", "bus_overvoltage_v = 70.0", "control.faults.bus_overvoltage_v"),
-        ("overcurrent_trip_a = 45.0", "overcurrent_trip_a = nan", "control.faults.overcurrent_trip_a"),
+        ("\novercurrent_trip_a = 45.0", "\novercurrent_trip_a = nan", "control.faults.overcurrent_trip_a"),
     ];
     for (line, bad, field) in cases {
         let e = rig_with(line, bad).expect_err(bad).to_string();

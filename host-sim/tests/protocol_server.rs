@@ -288,7 +288,7 @@ fn capture_and_test_requests_are_shape_checked_then_passed_on() {
     let (mut d, mut s) = (MockDrive::running(), MemStore::default());
     let cfg = |signals: &[Signal], decimation, samples, pre_trigger| {
         Request::Capture(CaptureRequest::Configure(CaptureConfig {
-            signals: heapless::Vec::from_slice(signals).unwrap(),
+            signals: servo_core::capture::SignalList::from_slice(signals).unwrap(),
             decimation,
             samples,
             pre_trigger,

@@ -11,10 +11,11 @@ use core::cell::{Cell, RefCell};
 
 use servo_core::controller::ApplyError;
 use servo_core::params::ValidatedParams;
-use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, Reason, TestSignal, CAPTURE_CHUNK_MAX};
+use servo_core::protocol::drive::read_chunk;
+use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, Reason, TestSignal};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Mode, Readiness};
 
-use super::link::{BulkIn, BulkOut, CaptureOp, Reply, CAPTURE};
+use super::link::{BulkIn, BulkOut, Reply, CAPTURE};
 use super::ServoBoard;
 
 /// Thread mode's copy of the controller's parameters, kept across
@@ -131,11 +132,10 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
         // from `CAPTURE`, which the interrupt no longer writes once the
         // capture is done (until the next `Configure`, which only this
         // thread sends). No per-chunk decoding in the interrupt.
-        let op = match request {
-            CaptureRequest::Read { signal, start, count } => return self.read_capture(*signal, *start, *count),
-            r => CaptureOp::of(r).ok_or(Reason::MoreSignalsThanTheBoardRecords)?,
-        };
-        match self.bulk(BulkIn::Capture(op))? {
+        if let CaptureRequest::Read { signal, start, count } = *request {
+            return self.read_capture(signal, start, count);
+        }
+        match self.bulk(BulkIn::Capture(*request))? {
             BulkOut::Done => Ok(CaptureReply::Ok),
             BulkOut::CaptureStatus(s) => Ok(CaptureReply::Status(s)),
             _ => Err(Reason::NoAnswer),
@@ -164,14 +164,9 @@ impl<B: ServoBoard> BoardDrive<'_, B> {
 
     #[inline(never)]
     fn read_capture(&mut self, signal: u8, start: u16, count: u8) -> Result<CaptureReply, Reason> {
-        let BulkOut::CaptureLayout(layout) = self.bulk(BulkIn::Capture(CaptureOp::Layout))? else {
+        let BulkOut::CaptureLayout(layout) = self.bulk(BulkIn::CaptureLayout)? else {
             return Err(Reason::NoAnswer);
         };
-        let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
-        let want = usize::from(count).min(CAPTURE_CHUNK_MAX);
-        let out = buf.get_mut(..want).unwrap_or(&mut []);
-        let n = CAPTURE.read(&layout, signal, start, out)?;
-        let values = servo_core::protocol::heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| Reason::ChunkTooLong)?;
-        Ok(CaptureReply::Data { signal, start, values })
+        read_chunk(signal, start, count, |out| CAPTURE.read(&layout, signal, start, out))
     }
 }

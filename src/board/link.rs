@@ -25,7 +25,7 @@ use servo_core::controller::ApplyError;
 use servo_core::protocol::drive::on_controller;
 use servo_core::capture::{CaptureLayout, CaptureStore};
 use servo_core::params::ValidatedParams;
-use servo_core::protocol::{CaptureRequest, CaptureStatus, Reason, Signal, TestSignal, CAPTURE_SIGNALS_MAX};
+use servo_core::protocol::{CaptureReply, CaptureRequest, CaptureStatus, Reason, TestSignal};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams, Controller, FaultSet, LimitFlags, Mode, Readiness, Telemetry};
 
 use super::BoardStatus;
@@ -90,74 +90,16 @@ pub enum Reply {
 pub enum BulkIn {
     /// A whole validated set for `ApplyParams`.
     Params(ValidatedParams),
-    /// A capture request (`Request::Bulk`); `Read` is served in thread mode
-    /// from the store (see [`CaptureOp::Layout`]).
-    Capture(CaptureOp),
-    /// Start a test signal (`Request::Bulk`).
-    Test(TestSignal),
-}
-
-/// A capture request in a `Copy` form (the protocol's `CaptureRequest`
-/// holds a `heapless::Vec`), rebuilt in the interrupt for
-/// `servo_core::protocol::drive::on_controller::capture`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum CaptureOp {
-    Configure {
-        signals: [Signal; CAPTURE_SIGNALS_MAX],
-        count: u8,
-        decimation: u16,
-        samples: u16,
-        pre_trigger: u16,
-        trigger: servo_core::protocol::CaptureTrigger,
-    },
-    Trigger,
-    Status,
+    /// A capture request (`Request::Bulk`), the core's own type; thread
+    /// mode serves `Read` from the store instead (see
+    /// [`BulkIn::CaptureLayout`]).
+    Capture(CaptureRequest),
     /// The layout of a done capture (`Controller::capture_layout`): thread
     /// mode then reads the store itself, the interrupt writes nothing to it
     /// until the next `Configure`.
-    Layout,
-}
-
-impl CaptureOp {
-    /// The `Copy` form of a configure/trigger/status request; `None` for
-    /// `Read` (thread mode serves it) and for more signals than fit.
-    pub fn of(request: &CaptureRequest) -> Option<Self> {
-        Some(match request {
-            CaptureRequest::Configure(c) => {
-                let mut signals = [Signal::CurrentQ; CAPTURE_SIGNALS_MAX];
-                signals.get_mut(..c.signals.len())?.copy_from_slice(&c.signals);
-                Self::Configure {
-                    signals,
-                    count: u8::try_from(c.signals.len()).ok()?,
-                    decimation: c.decimation,
-                    samples: c.samples,
-                    pre_trigger: c.pre_trigger,
-                    trigger: c.trigger,
-                }
-            }
-            CaptureRequest::Trigger => Self::Trigger,
-            CaptureRequest::Status => Self::Status,
-            CaptureRequest::Read { .. } => return None,
-        })
-    }
-
-    /// The protocol's request again (`None` for `Layout`).
-    pub fn request(&self) -> Option<CaptureRequest> {
-        Some(match *self {
-            Self::Configure { signals, count, decimation, samples, pre_trigger, trigger } => {
-                CaptureRequest::Configure(servo_core::protocol::CaptureConfig {
-                    signals: servo_core::protocol::heapless::Vec::from_slice(signals.get(..usize::from(count))?).ok()?,
-                    decimation,
-                    samples,
-                    pre_trigger,
-                    trigger,
-                })
-            }
-            Self::Trigger => CaptureRequest::Trigger,
-            Self::Status => CaptureRequest::Status,
-            Self::Layout => return None,
-        })
-    }
+    CaptureLayout,
+    /// Start a test signal (`Request::Bulk`).
+    Test(TestSignal),
 }
 
 /// What travels in the bulk-out slot (interrupt → thread mode).
@@ -285,7 +227,7 @@ static BULK_OUT: Slot<BulkOut> = Slot::new();
 /// The capture store (8 KiB of `.bss`): the interrupt writes it through the
 /// controller (`Controller::attach_capture_store`, before the controller is
 /// installed); thread mode reads a done capture straight from it
-/// (`CaptureOp::Layout`), since the interrupt writes nothing to it once the
+/// (`BulkIn::CaptureLayout`), since the interrupt writes nothing to it once the
 /// capture is done and until the next configure.
 pub static CAPTURE: CaptureStore = CaptureStore::new();
 /// The controller, moved into the interrupt once.
@@ -377,21 +319,15 @@ impl IsrLink {
                 Ok(()) => BulkOut::Done,
                 Err(e) => BulkOut::Refused(e),
             },
-            // The controller's capture calls directly (what
-            // `on_controller::capture` does for these three, without its
-            // `Read` arm, which thread mode serves from the store).
-            (Request::Bulk, Some(BulkIn::Capture(op))) => {
-                let done = match op {
-                    CaptureOp::Layout => c.capture_layout().map(BulkOut::CaptureLayout),
-                    CaptureOp::Status => Ok(BulkOut::CaptureStatus(c.capture_status())),
-                    CaptureOp::Trigger => c.capture_trigger().map(|()| BulkOut::Done),
-                    CaptureOp::Configure { .. } => match op.request() {
-                        Some(CaptureRequest::Configure(config)) => c.capture_configure(&config).map(|()| BulkOut::Done),
-                        _ => return Reply::Refused,
-                    },
-                };
-                done.unwrap_or_else(BulkOut::Refused)
-            }
+            // The same mapping as the simulated drive's; thread mode sends
+            // no `Read` (it reads the store), so no data comes back here.
+            (Request::Bulk, Some(BulkIn::Capture(request))) => match on_controller::capture(c, &request) {
+                Ok(CaptureReply::Ok) => BulkOut::Done,
+                Ok(CaptureReply::Status(s)) => BulkOut::CaptureStatus(s),
+                Ok(CaptureReply::Data { .. }) => BulkOut::Refused(Reason::NoAnswer),
+                Err(e) => BulkOut::Refused(e),
+            },
+            (Request::Bulk, Some(BulkIn::CaptureLayout)) => c.capture_layout().map(BulkOut::CaptureLayout).unwrap_or_else(BulkOut::Refused),
             _ => return Reply::Refused,
         };
         // A stale answer nobody collected is replaced.

@@ -21,7 +21,7 @@
 mod config;
 mod store;
 
-pub use config::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
+pub use config::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, SignalList, CAPTURE_SIGNALS_MAX};
 pub use store::{CaptureStore, CAPTURE_STORE_CELLS};
 
 /// The lowest code: a value at or below −full scale, or NaN (the cheap

@@ -161,6 +161,10 @@ pub struct Commutation {
     /// first move.
     means: [f32; 3],
     x_pre_counts: f32,
+    /// Position when the hold vector was pointed, and its angle ahead of
+    /// the rotor (`atan2(q, d)`): what a mirrored hold needs.
+    x_build_counts: f32,
+    hold_lead_rad: f32,
     output: CommutationOutput,
 }
 
@@ -189,6 +193,8 @@ impl Commutation {
             mean_sum: 0.0,
             means: [0.0; 3],
             x_pre_counts: 0.0,
+            x_build_counts: 0.0,
+            hold_lead_rad: 0.0,
             output: CommutationOutput { current_a: 0.0, angle_rad: 0.0, brake_release: false, done: None },
         }
     }
@@ -271,6 +277,12 @@ impl Commutation {
         }
         if self.output.done.is_some() {
             return self.output;
+        }
+        if matches!(self.phase, Phase::Release | Phase::Probe(_)) && self.output.brake_release {
+            self.watch_runaway(p, s, electrical_rad_per_count);
+            if !matches!(self.phase, Phase::Release | Phase::Probe(_)) {
+                return self.output;
+            }
         }
         match self.phase {
             Phase::RampIn => {
@@ -427,6 +439,43 @@ impl Commutation {
         }
     }
 
+    /// With the brake open the rotor may only follow the vector: at most
+    /// the hold's lead, and the check move plus the dither swing twice over
+    /// for the lag. Beyond
+    /// that the vector does not hold the load: its balance is unstable,
+    /// which is what a mirrored phase sequence gives (`wrong_direction`).
+    /// The vector is turned at once to the balance a mirrored motor has at
+    /// the present position, `hold + π − 2·lead − Δθ` (the hold's lead
+    /// mirrored, the rotor's travel since it was pointed undone), which
+    /// holds the load while the brake closes.
+    fn watch_runaway(&mut self, p: &ControlParams, s: &CommutationInput, electrical_rad_per_count: f32) {
+        // The hold's lead is the expected load's: a load that differs moves
+        // the balance by up to that much.
+        let lead = self.hold_lead_rad.abs();
+        let span_rad = match self.phase {
+            Phase::Release => lead + p.commutation.check_angle_rad,
+            _ => lead + 2.0 * (1.0 + DITHER_OF_CHECK_ANGLE) * p.commutation.check_angle_rad,
+        };
+        let moved_rad = (s.position_counts - self.x_pre_or_release(s)) * electrical_rad_per_count;
+        if moved_rad.abs() <= span_rad {
+            return;
+        }
+        let travelled = (s.position_counts - self.x_build_counts) * electrical_rad_per_count;
+        self.ratio = moved_rad / p.commutation.check_angle_rad;
+        self.output.angle_rad = wrap_pi(self.hold_angle_rad + PI - 2.0 * self.hold_lead_rad - travelled);
+        self.fail(FaultSet::WRONG_DIRECTION);
+    }
+
+    /// Where the rotor was when the brake had let go (the release phase's
+    /// start position until then).
+    fn x_pre_or_release(&mut self, s: &CommutationInput) -> f32 {
+        if self.phase == Phase::Release && self.stage_k == 0 {
+            self.x_pre_counts = s.position_counts;
+            self.stage_k = 1;
+        }
+        self.x_pre_counts
+    }
+
     /// The rotation out, against back (both ways: the mean of the two
     /// outs against the back between them, so the load, the friction and a
     /// steady drift cancel), as a fraction of the one the drive's pole
@@ -469,7 +518,9 @@ impl Commutation {
         let theta_now = self.offset_rad + s.counts_in_turn * electrical_rad_per_count;
         let q = s.load_hint_q_a;
         self.hold_a = sqrt(hold_d_a * hold_d_a + q * q);
-        self.hold_angle_rad = theta_now + atan2(q, hold_d_a);
+        self.hold_lead_rad = atan2(q, hold_d_a);
+        self.hold_angle_rad = theta_now + self.hold_lead_rad;
+        self.x_build_counts = s.position_counts;
         let (si, co) = sincos(self.output.angle_rad);
         self.from = (self.output.current_a * co, self.output.current_a * si);
         self.enter(Phase::BuildHold);

@@ -93,10 +93,10 @@ pub trait DriveAccess {
     fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Reason>;
 }
 
-/// Where the parameter record lives: flash on the board
-/// (sequential-storage over embassy-stm32's flash, blocking: the server
-/// refuses `Save`/`Load` with the bridge on, because a flash erase stalls
-/// the instruction fetch of the PWM interrupt), a file in the simulator.
+/// Where the parameter record lives: flash on the board (two pages used in
+/// turn, `board::b_g431b_esc1::comms::FlashStore`; the server refuses
+/// `Save`/`Load` with the bridge on, because a flash erase stalls the
+/// instruction fetch of the PWM interrupt), a file in the simulator.
 pub trait ParamStore {
     /// Stores `record` (see `params::record`), replacing the previous one.
     fn save(&mut self, record: &[u8]) -> Result<(), Text>;
@@ -106,6 +106,23 @@ pub trait ParamStore {
     fn load(&mut self, buf: &mut [u8]) -> Result<usize, Text>;
 }
 
+/// One chunk of a done capture as a reply: at most [`CAPTURE_CHUNK_MAX`]
+/// values of `signal` from sample `start`, read by `read` (the controller's
+/// capture, or the board's store straight from thread mode): the one read
+/// path of the simulated drive and the board.
+pub fn read_chunk(
+    signal: u8,
+    start: u16,
+    count: u8,
+    read: impl FnOnce(&mut [f32]) -> Result<usize, Reason>,
+) -> Result<CaptureReply, Reason> {
+    let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
+    let want = usize::from(count).min(CAPTURE_CHUNK_MAX);
+    let n = read(buf.get_mut(..want).unwrap_or(&mut []))?;
+    let values = Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| Reason::ChunkTooLong)?;
+    Ok(CaptureReply::Data { signal, start, values })
+}
+
 /// The capture and test requests on a [`Controller`] that the caller owns
 /// between two steps: the one mapping the simulator and the board's
 /// interrupt-side request handler share, so both answer alike.
@@ -113,7 +130,6 @@ pub mod on_controller {
     use super::CaptureReply;
     use crate::controller::Controller;
     use crate::capture::CaptureRequest;
-    use crate::protocol::messages::CAPTURE_CHUNK_MAX;
     use crate::test_signals::TestSignal;
     use crate::reason::Reason;
 
@@ -123,12 +139,7 @@ pub mod on_controller {
             CaptureRequest::Trigger => c.capture_trigger().map(|()| CaptureReply::Ok),
             CaptureRequest::Status => Ok(CaptureReply::Status(c.capture_status())),
             CaptureRequest::Read { signal, start, count } => {
-                let mut buf = [0.0f32; CAPTURE_CHUNK_MAX];
-                let want = usize::from(*count).min(CAPTURE_CHUNK_MAX);
-                let out = buf.get_mut(..want).unwrap_or(&mut []);
-                let n = c.capture_read(*signal, *start, out)?;
-                let values = heapless::Vec::from_slice(buf.get(..n).unwrap_or(&[])).map_err(|_| Reason::ChunkTooLong)?;
-                Ok(CaptureReply::Data { signal: *signal, start: *start, values })
+                super::read_chunk(*signal, *start, *count, |out| c.capture_read(*signal, *start, out))
             }
         }
     }

@@ -26,7 +26,7 @@ pub use frame::{decode, encode, Feed, FrameReader, FRAME_MAX};
 pub use drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 pub use messages::*;
 // The core's words the messages carry, re-exported for the protocol's users.
-pub use crate::capture::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, CAPTURE_SIGNALS_MAX};
+pub use crate::capture::{CaptureConfig, CaptureRequest, CaptureState, CaptureStatus, CaptureTrigger, Signal, SignalList, CAPTURE_SIGNALS_MAX};
 pub use crate::params::record::PARAMS_SCHEMA_HASH;
 pub use crate::params::value::{Value, ValueKind};
 pub use crate::reason::Reason;

@@ -180,14 +180,14 @@ mod protocol {
 /// board through the interrupt's request slot).
 fn scope(c: &mut Controller) {
     use servo_core::capture::CaptureStore;
-    use servo_core::protocol::{heapless::Vec, CaptureConfig, CaptureTrigger, ChirpTarget, Signal, TestSignal};
+    use servo_core::protocol::{CaptureConfig, CaptureTrigger, ChirpTarget, Signal, TestSignal};
     static STORE: CaptureStore = CaptureStore::new();
     let sel = opaque(addr_of!(SELECT));
     let arg = opaque(addr_of!(ARG));
     if sel == 3 {
         c.attach_capture_store(&STORE);
     }
-    let mut signals = Vec::new();
+    let mut signals = servo_core::capture::SignalList::EMPTY;
     let all = [Signal::CurrentQ, Signal::Speed, Signal::MotorPosition, Signal::ElectricalAngle, Signal::PhaseCurrentC];
     for k in 0..(sel & 7) as usize {
         let _ = signals.push(all.get(k % all.len()).copied().unwrap_or(Signal::BusVoltage));

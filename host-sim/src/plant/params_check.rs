@@ -89,6 +89,9 @@ impl PlantParams {
         non_negative("plant.motor.viscous_friction_n_m_s_rad", m.viscous_friction_n_m_s_rad)?;
 
         positive("plant.inverter.nominal_bus_voltage_v", self.inverter.nominal_bus_voltage_v)?;
+        positive("plant.inverter.rated_bus_max_v", self.inverter.rated_bus_max_v)?;
+        positive("plant.inverter.rated_current_max_a", self.inverter.rated_current_max_a)?;
+        positive("plant.inverter.rated_overcurrent_trip_a", self.inverter.rated_overcurrent_trip_a)?;
 
         let c = &self.coupling;
         non_negative("plant.coupling.inertia_kg_m2", c.inertia_kg_m2)?;

@@ -19,8 +19,9 @@ pub enum Failure {
     EncoderUnplugged,
     /// The bus sags by 5 V while the current offsets are averaged.
     SupplySagDuringCalibration,
-    /// The brake disc is worn: 1.4 N·m, enough for the load alone, not for
-    /// the load and the commutation's test torque.
+    /// The brake disc is worn: the load's back-drive torque plus half the
+    /// commutation's test torque (1.4 N·m on the shipped rig), enough for
+    /// the load alone, not for the load and the test.
     BrakeSlips,
     /// Homing by switch, but the switch is never reached.
     HomeSwitchNeverTriggers,

@@ -62,7 +62,15 @@ fn build(rig: &RigConfig, case: &PowerUpCase) -> Result<ClosedLoop> {
             plant_params.brake.holding_torque_n_m = 50.0;
         }
         Failure::WrongPolePairs => control.motor.pole_pairs = plant_params.motor.pole_pairs + 1,
-        Failure::BrakeSlips => plant_params.brake.holding_torque_n_m = 1.4,
+        Failure::BrakeSlips => {
+            // Worn to the load's back-drive torque plus half the test
+            // torque: it holds the load alone, not the commutation's test
+            // (1.4 N·m on the shipped rig).
+            let pl = &plant_params;
+            let load = pl.moving_mass_kg() * pl.load.gravity_m_s2 * pl.metres_per_rad() * (2.0 - 1.0 / pl.screw.efficiency);
+            let test = 1.5 * f64::from(pl.motor.pole_pairs) * pl.motor.flux_linkage_wb * f64::from(control.commutation.test_current_a);
+            plant_params.brake.holding_torque_n_m = load + 0.5 * test;
+        }
         Failure::HomeSwitchNeverTriggers => {
             control.homing.method = HomingMethod::Switch;
             control.homing.travel_max_m = FAILURE_HOMING_TRAVEL_M;

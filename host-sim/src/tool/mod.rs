@@ -697,7 +697,7 @@ pub fn capture(
     wait: Duration,
 ) -> Result<CaptureData> {
     let cfg = CaptureConfig {
-        signals: servo_core::protocol::heapless::Vec::from_slice(signals).map_err(|_| anyhow!("at most {} signals", servo_core::protocol::CAPTURE_SIGNALS_MAX))?,
+        signals: servo_core::capture::SignalList::from_slice(signals).map_err(|_| anyhow!("at most {} signals", servo_core::protocol::CAPTURE_SIGNALS_MAX))?,
         decimation,
         samples,
         pre_trigger,

@@ -10,7 +10,7 @@ use crate::drive::{self, DriveOptions, Pace};
 use crate::report::plots::{line_chart, Series};
 use anyhow::{bail, Result};
 use servo_core::protocol::{
-    heapless, CaptureConfig, CaptureTrigger, ChirpTarget, DriveCommand, Reply, Request, Signal, TestSignal,
+    CaptureConfig, CaptureTrigger, ChirpTarget, DriveCommand, Reply, Request, Signal, TestSignal,
 };
 use std::path::Path;
 use std::time::Duration;
@@ -96,7 +96,7 @@ impl Spec {
         }
         let samples = ((periods / f64::from(decimation)).ceil()).clamp(64.0, max_samples) as u16;
         Ok(CaptureConfig {
-            signals: heapless::Vec::from_slice(signals).expect("at most 4 signals"),
+            signals: servo_core::capture::SignalList::from_slice(signals).expect("at most 4 signals"),
             decimation,
             samples,
             pre_trigger: samples / 11,

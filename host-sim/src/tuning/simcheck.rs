@@ -12,7 +12,7 @@ use crate::plant::Plant;
 use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, bail, Result};
 use servo_core::capture::CaptureStore;
-use servo_core::protocol::{heapless, CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
+use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use servo_core::{Command, ControlParams, Controller, Mode};
 use std::f64::consts::PI;
 
@@ -121,7 +121,7 @@ impl TestSpec {
         }
         let sig: Vec<Signal> = self.signals.iter().map(|n| signal(n)).collect();
         Ok(CaptureConfig {
-            signals: heapless::Vec::from_slice(&sig).map_err(|_| anyhow!("at most 4 signals"))?,
+            signals: servo_core::capture::SignalList::from_slice(&sig).map_err(|_| anyhow!("at most 4 signals"))?,
             decimation: self.decimation,
             samples: samples as u16,
             pre_trigger: (samples / 11) as u16,
