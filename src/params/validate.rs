@@ -273,6 +273,8 @@ impl ControlParams {
     /// Refuses a parameter set the loops cannot run with, naming the field.
     pub const fn validate(&self) -> Result<(), ParamError> {
         check!(check_rules(self));
+        check!(super::ranges::validate_ranges(self));
+        check!(super::ranges::validate_gains(self));
         let d = &self.drive_train;
         if d.screw_efficiency > 1.0 {
             return Err(ParamError { leaf: leaf!(drive_train.screw_efficiency), reason: Reason::MustBeAtMostOne });
