@@ -146,6 +146,13 @@ fn sincos_poly(x: f32) -> (f32, f32) {
     servo_core::math::sincos(x)
 }
 
+/// micromath's sin and cos (the design card's crate), behind a call.
+#[inline(never)]
+fn sincos_micromath(x: f32) -> (f32, f32) {
+    use micromath::F32Ext;
+    (x.sin(), x.cos())
+}
+
 // ---- report ----------------------------------------------------------------
 
 struct Row {
@@ -488,6 +495,14 @@ fn main() -> ! {
         "servo_core::math::sincos (f32 polynomial), same angles",
         &each(&m, 997, angle, |x| {
             black_box(sincos_poly(x));
+        }),
+    ));
+    push(row(
+        &m,
+        "micromath_sincosf",
+        "micromath F32Ext sin + cos, same angles",
+        &each(&m, 997, angle, |x| {
+            black_box(sincos_micromath(x));
         }),
     ));
     push(row(
