@@ -14,7 +14,7 @@
 
 mod diagnose_support;
 
-use diagnose_support::gap::{force_logs, nominal_pair, wrong_rig, GapLogs, Timing, WrongParam};
+use diagnose_support::gap::{force_logs, nominal_pair, quiet_nominal, wrong_rig, GapLogs, Timing, WrongParam};
 use diagnose_support::truth::nominal_rig;
 use host_sim::diagnose::disturbance::DisturbanceFit;
 use host_sim::diagnose::residual::{fit_regression, Nominal, Physics};
@@ -23,7 +23,8 @@ use std::fmt::Write as _;
 
 #[derive(Clone, Copy, Debug)]
 enum Spec {
-    Force(Timing, u64),
+    /// Force events of a timing, seed, size factor (× the motion's force RMS).
+    Force(Timing, u64, f64),
     WrongRig(WrongParam, u64),
     WrongRigForce(WrongParam, u64),
     TrainingIsReference(u64),
@@ -55,6 +56,8 @@ struct Outcome {
     refitted: Vec<String>,
     wrong_param_refitted: Option<bool>,
     refit_primary_pct: Option<f64>,
+    refit_halves_pct: Option<(f64, f64)>,
+    refit_stable: Option<bool>,
     disturbance_locked: Option<bool>,
     gates: Vec<String>,
     wall_s: f64,
@@ -131,8 +134,8 @@ fn run_case(spec: Spec) -> Outcome {
         o.train_fit_torque_pct = s.channels.iter().find(|c| c.channel == "torque").map(|c| c.fit_train_pct);
     };
     let d = match spec {
-        Spec::Force(timing, seed) => {
-            let g = force_logs(&rig, timing, None, seed);
+        Spec::Force(timing, seed, factor) => {
+            let g = force_logs(&rig, timing, Some(factor), seed);
             let d = diagnose_with(&g.train, Some(&g.held), None, physics(&rig), tilt, &opts).expect("diagnosis");
             o.case = format!("force {timing:?}");
             o.family = "force";
@@ -159,13 +162,15 @@ fn run_case(spec: Spec) -> Outcome {
             o.refitted = r.map_or(Vec::new(), |r| r.changed.clone());
             o.wrong_param_refitted = Some(o.refitted.iter().any(|p| which.refit_names().iter().any(|n| p.starts_with(n))));
             o.refit_primary_pct = r.map(|r| r.primary_shrink_pct);
+            o.refit_halves_pct = r.map(|r| r.halves_primary_shrink_pct);
+            o.refit_stable = r.map(|r| r.stable);
             if let Some(g) = &g {
                 force_outcome(&mut o, &d, g);
             }
             d
         }
         Spec::TrainingIsReference(seed) => {
-            let (reference, _) = nominal_pair(&rig, seed);
+            let reference = quiet_nominal(&rig, 3000 + seed);
             let g = force_logs(&rig, Timing::Free, Some(1.0 + 2.0 * ((seed % 5) as f64 / 4.0)), seed);
             let reg = fit_regression(&reference).expect("regression");
             let d = diagnose_with(&reference, Some(&g.held), Some(&reference), Nominal::Regression(reg), tilt, &opts).expect("diagnosis");
@@ -240,9 +245,10 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
     for o in out {
         let _ = writeln!(
             rep,
-            "| {} | {} | {} | {:.1} | {} | {} / {} ({}) | {} ({}) | {} | {} | {} | {} |",
+            "| {} | {} | {} | {:.1} | {} | {} / {} ({}) | {} ({}) | {} | {} {} | {} | {} |",
             o.case, o.seed, o.verdict, o.explained_pct, f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
             f1(o.timing_err_ms), f1(o.edges_within_5ms_pct), f1(o.train_fit_torque_pct), o.refitted.join("; "),
+            o.refit_primary_pct.map_or(String::new(), |r| format!("(re-fit {r:.1} %, halves {:?}, stable {:?})", o.refit_halves_pct.map(|h| (h.0.round(), h.1.round())), o.refit_stable)),
             o.disturbance_locked.map_or("–", |b| if b { "yes" } else { "no" }), o.gates.join(", ")
         );
     }
@@ -264,8 +270,13 @@ fn specs(base: u64, n: u64) -> Vec<Spec> {
     let mut v = Vec::new();
     for k in 0..n {
         let s = base + k;
-        for t in [Timing::Free, Timing::Synced, Timing::LongStep] {
-            v.push(Spec::Force(t, s));
+        // Size factors stratified over [0.2, 5] (log scale): the k-th of
+        // n equal bins, a point in it fixed by the seed and the timing.
+        for (j, t) in [Timing::Free, Timing::Synced, Timing::LongStep].into_iter().enumerate() {
+            let u = ((s as f64 + 0.37 * j as f64) * 0.618_034).fract();
+            let bin = (k + j as u64) % n;
+            let factor = (0.2f64.ln() + (bin as f64 + u) / n as f64 * 25f64.ln()).exp();
+            v.push(Spec::Force(t, s, factor));
         }
         for w in [WrongParam::Payload, WrongParam::Flux] {
             v.push(Spec::WrongRig(w, s));
@@ -306,4 +317,20 @@ fn gap_suite() {
     }
     figures["total_wall_s"] = t0.elapsed().as_secs_f64().into();
     write("gap", &figures, &rep);
+}
+
+/// CI: short force events five times the motion's own force are a
+/// disturbance with their level and times; a wrong payload in the rig file
+/// is a rig mismatch naming the mass.
+#[test]
+fn gap_smoke() {
+    let o = run_case(Spec::Force(Timing::Free, 7, 5.0));
+    assert_eq!(o.verdict, "disturbance", "{}", o.headline);
+    assert!(o.explained_pct >= 70.0, "{}", o.headline);
+    let err = o.level_err_pct.expect("level in N");
+    assert!(err <= 20.0, "level {:?} vs {:?} N", o.level_est_n, o.level_true_n);
+    assert!(o.timing_err_ms.is_some_and(|t| t <= 5.0), "timing {:?} ms", o.timing_err_ms);
+    let o = run_case(Spec::WrongRig(WrongParam::Payload, 7));
+    assert_eq!(o.verdict, "rig_mismatch", "{}", o.headline);
+    assert_eq!(o.wrong_param_refitted, Some(true), "{:?}", o.refitted);
 }

@@ -76,6 +76,7 @@ fn run(
         implausible_after_stack: still_implausible,
         refit: None,
         refit_dist: None,
+        generic: None,
     })
 }
 
@@ -192,6 +193,7 @@ fn decide_with_refit(
         implausible_after_stack: None,
         refit: Some(refit),
         refit_dist: None,
+        generic: None,
     })
 }
 

@@ -16,6 +16,7 @@ pub mod effects;
 pub mod events;
 pub mod export;
 pub mod figures;
+pub mod generic;
 pub mod fit;
 pub mod gates;
 pub mod log;
@@ -273,6 +274,35 @@ pub fn diagnose_with(
     } else {
         segments = split_segments(segments);
     }
+    // The regression nominal judged on its own reference: a channel it
+    // does not hold on is left out (its gap would be the regression's);
+    // with none left, the baseline is broken (`gates::baseline_broken`).
+    let mut reference_gates = Vec::new();
+    if let (Nominal::Regression(reg), Some(r)) = (&nominal, reference) {
+        reference_gates = gates::reference_gates(r, reg)?;
+        let unsound: Vec<usize> = reference_gates
+            .iter()
+            .filter(|g| g.kind == "reference_unsound")
+            .filter_map(|g| CHANNELS.iter().position(|c| Some(*c) == g.channel.as_deref()))
+            .collect();
+        let with_data: Vec<usize> = (0..NCH)
+            .filter(|c| segments.iter().any(|s| s.r[*c].is_some()))
+            .collect();
+        if with_data.iter().any(|c| !unsound.contains(c)) {
+            for s in &mut segments {
+                for &c in &unsound {
+                    s.y[c] = None;
+                    s.r[c] = None;
+                }
+            }
+            for g in &mut reference_gates {
+                if g.kind == "reference_unsound" {
+                    g.kind = "reference_channel_left_out".into();
+                    g.message.push_str("; this channel is left out of the diagnosis");
+                }
+            }
+        }
+    }
     let train: Vec<&Segment> = segments.iter().filter(|s| !s.heldout).collect();
     let held: Vec<&Segment> = segments.iter().filter(|s| s.heldout).collect();
     if train.is_empty() || held.is_empty() {
@@ -298,9 +328,7 @@ pub fn diagnose_with(
         &rk.not_ranked,
         &|c| channel_unit(&nominal, c),
     ));
-    if let (Nominal::Regression(reg), Some(r)) = (&nominal, reference) {
-        gates.extend(gates::reference_gates(r, reg)?);
-    }
+    gates.extend(reference_gates);
     let blocked = gates
         .iter()
         .any(|g| g.kind.ends_with("_is_training") || g.kind.ends_with("_is_reference"));
@@ -535,7 +563,14 @@ pub fn diagnose_with(
         d.over_stack_points = d.primary_shrink_pct - rf.primary_shrink_pct.max(0.0);
         (Some(rf), Some(d))
     };
+    // Generic structures on what the stack leaves (torque and position).
+    let generic = if blocked {
+        Vec::new()
+    } else {
+        generic::fit_all(&train, &rem_t, &held, &rem_h, &nominal)
+    };
     let verdict = verdict::decide(&verdict::Inputs {
+        generic: generic::named(&generic),
         refit: refit.as_ref(),
         refit_dist: refit_dist.as_ref(),
         implausible_after_stack,
@@ -603,6 +638,7 @@ pub fn diagnose_with(
         disturbance: Some(dist),
         refit,
         refit_disturbance: refit_dist,
+        generic,
         verdict,
         wall_s: t0.elapsed().as_secs_f64(),
         replay: None,

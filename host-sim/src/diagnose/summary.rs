@@ -109,6 +109,9 @@ pub struct Summary {
     pub refit: Option<super::refit::Refit>,
     /// The disturbance fitted on what the re-fit leaves.
     pub refit_disturbance: Option<disturbance::DisturbanceFit>,
+    /// Generic structures fitted on what the stack leaves of the primary
+    /// channel, best first.
+    pub generic: Vec<super::generic::GenericFit>,
     /// The open-world verdict.
     pub verdict: verdict::Verdict,
     pub wall_s: f64,

@@ -8,6 +8,7 @@
 //! share of the gap. Effects the log cannot separate are named as a group.
 
 use super::disturbance::DisturbanceFit;
+use super::generic::GenericFit;
 use super::refit::Refit;
 use super::events::TimeStructure;
 use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
@@ -79,12 +80,16 @@ pub struct Inputs<'a> {
     /// The disturbance fitted on what the re-fit leaves (its
     /// `over_stack_points` are points over the re-fit).
     pub refit_dist: Option<&'a DisturbanceFit>,
+    /// The generic structure that names the remainder (`generic::named`).
+    pub generic: Option<&'a GenericFit>,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Verdict {
     /// `library_effect`, `library_group`, `disturbance`, `rig_mismatch`,
-    /// `unexplained`, `baseline_mismatch` (the nominal is unsound on what
+    /// `generic_structure` (none of those explains most of the gap, but a
+    /// delay, resonance, gain drift or constant force names the
+    /// remainder), `unexplained`, `baseline_mismatch` (the nominal is unsound on what
     /// it was fitted on) or `nothing_to_find`.
     pub kind: String,
     /// The headline, first line of the report.
@@ -109,6 +114,8 @@ pub struct Verdict {
     pub explanations: std::collections::BTreeMap<String, f64>,
     /// The re-fitted parameters beyond tolerance (kind `rig_mismatch`).
     pub refitted: Vec<String>,
+    /// The generic structure named (kind `generic_structure`).
+    pub generic: Option<GenericFit>,
 }
 
 /// How the baseline gates govern the verdict.
@@ -318,7 +325,7 @@ pub fn decide(i: &Inputs) -> Verdict {
     // remainder): both must carry their own share.
     let rd = i
         .refit_dist
-        .filter(|d| r_valid && !d.locked_to_signals)
+        .filter(|d| (r_valid || flux_gate.is_some()) && !d.locked_to_signals)
         .map(|d| (d.primary_shrink_pct.max(0.0), d.over_stack_points));
     let rd_ok = rd.is_some_and(|(t, add)| {
         t >= MOST_OF_GAP_PCT && add >= DISTURBANCE_OVER_STACK_POINTS && r_total >= DISTURBANCE_OVER_STACK_POINTS
@@ -375,8 +382,12 @@ pub fn decide(i: &Inputs) -> Verdict {
     .into_iter()
     .flatten()
     .fold(0.0, f64::max);
+    // A re-fitted parameter no library effect stands for (torque constant,
+    // flux, compliance, a payload whose weight and inertia agree) leads a
+    // library stack it matches within the tie.
+    let rig_specific = refit.is_some_and(|r| r.rig_specific);
     let lib_leads = lib >= MOST_OF_GAP_PCT
-        && !(r_ok && r_total > lib + LIBRARY_TIE_POINTS)
+        && !(r_ok && (r_total > lib + LIBRARY_TIE_POINTS || rig_specific && r_total >= lib - LIBRARY_TIE_POINTS))
         && !(dist_ok && dist_better)
         && !(const_force >= MOST_OF_GAP_PCT && const_force >= lib + DISTURBANCE_OVER_STACK_POINTS);
     // The rig's flux measured off the back-EMF is this motor's whatever the
@@ -488,6 +499,34 @@ pub fn decide(i: &Inputs) -> Verdict {
                 v.remaining_gap_pct
             );
         }
+    } else if let Some(g) = i.generic {
+        v.kind = "generic_structure".into();
+        v.explained_pct = g.primary_shrink_pct;
+        v.explained_by = format!("generic structure: {}", g.class);
+        v.remaining_gap_pct = 100.0 - g.primary_shrink_pct;
+        v.generic = Some(g.clone());
+        let params = g
+            .params
+            .iter()
+            .map(|(k, x)| format!("{k} = {x:.4}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        v.headline = format!(
+            "{lead}No library effect, disturbance or re-fit of the rig's parameters explains most of the held-out gap; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; no other generic class comes within a factor {}), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
+            match g.class.as_str() {
+                "delay" => "pure delay between the channel and the motion",
+                "resonance" => "lightly damped resonance driven by the thrust",
+                "gain_drift" => "gain drifting with time",
+                "constant_force" => "constant unmeasured force",
+                other => other,
+            },
+            g.channel,
+            g.remainder_shrink_pct,
+            g.train_shrink_pct,
+            super::generic::GENERIC_LEAD,
+            g.primary_shrink_pct,
+            v.remaining_gap_pct
+        );
     } else {
         let r_raw = refit.map_or(0.0, |r| r.primary_shrink_pct.max(0.0));
         let best = lib_raw.max(dist_total).max(r_raw);

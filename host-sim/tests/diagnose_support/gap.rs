@@ -184,3 +184,9 @@ pub fn nominal_pair(rig: &RigConfig, seed: u64) -> (Log, Log) {
     let go = |s: u64| run(rig, &none, &Experiment::random(rig, s, DURATION_S), s).expect("run");
     (go(1000 + seed), go(2000 + seed))
 }
+
+/// The nominal rig on a quiet experiment (the load actuator holding
+/// nothing), no events: a healthy reference of the same kind of motion.
+pub fn quiet_nominal(rig: &RigConfig, seed: u64) -> Log {
+    run(rig, &UnmodelledEffects::default(), &quiet_experiment(rig, seed), seed).expect("run")
+}

@@ -94,6 +94,9 @@ pub struct Logs {
     pub train: Log,
     pub held: Log,
     pub held_events_s: Vec<f64>,
+    /// The generic class that should name the truth, with its true
+    /// parameters (`delay_ms`, `frequency_hz`, `level_n`), where it has one.
+    pub generic_truth: Option<(&'static str, Vec<(&'static str, f64)>)>,
 }
 
 fn run_exp(rig: &RigConfig, fx: &UnmodelledEffects, seed: u64) -> Log {
@@ -104,11 +107,15 @@ fn run_exp(rig: &RigConfig, fx: &UnmodelledEffects, seed: u64) -> Log {
 /// Logs of the nominal rig with library effect `e` (random parameters).
 pub fn library_logs(rig: &RigConfig, e: Effect, seed: u64) -> Logs {
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
-    let fx = plant_effects(rig, &[random_effect(e, &mut rng)]);
+    let truth = random_effect(e, &mut rng);
+    let fx = plant_effects(rig, std::slice::from_ref(&truth));
     Logs {
         train: run_exp(rig, &fx, 1000 + seed),
         held: run_exp(rig, &fx, 2000 + seed),
         held_events_s: Vec::new(),
+        // Held out of the library, a load offset is a constant unmeasured
+        // force of its level.
+        generic_truth: (e == Effect::LoadOffset).then(|| ("constant_force", vec![("level_n", truth.params[0])])),
     }
 }
 
@@ -171,6 +178,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train: logs.pop().expect("two"),
                 held,
                 held_events_s: held_events,
+                generic_truth: None,
             }
         }
         Novel::SensorDelay => {
@@ -189,6 +197,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train: f(run_exp(rig, &none, 1000 + seed)),
                 held: f(run_exp(rig, &none, 2000 + seed)),
                 held_events_s: vec![],
+                generic_truth: Some(("delay", vec![("delay_ms", d as f64)])),
             }
         }
         Novel::StructuralResonance => {
@@ -222,6 +231,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train: f(run_exp(rig, &none, 1000 + seed)),
                 held: f(run_exp(rig, &none, 2000 + seed)),
                 held_events_s: vec![],
+                generic_truth: Some(("resonance", vec![("frequency_hz", fr)])),
             }
         }
         Novel::TorqueConstantDrop => {
@@ -271,6 +281,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train: warm(run_exp(rig, &none, 1000 + seed), 0.0),
                 held: warm(run_exp(rig, &none, 2000 + seed), DURATION_S),
                 held_events_s: vec![],
+                generic_truth: Some(("gain_drift", vec![])),
             }
         }
         Novel::CurrentSaturation => {
@@ -288,6 +299,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train: with_column(&train, "current_q_a", clip),
                 held: with_column(&run_exp(rig, &none, 2000 + seed), "current_q_a", clip),
                 held_events_s: vec![],
+                generic_truth: None,
             }
         }
         Novel::EncoderMiscount => {
@@ -310,6 +322,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 train,
                 held,
                 held_events_s: vec![tb],
+                generic_truth: None,
             }
         }
     }
@@ -331,5 +344,6 @@ pub fn nominal_logs(rig: &RigConfig, seed: u64) -> Logs {
         train: run_exp(rig, &none, 1000 + seed),
         held: run_exp(rig, &none, 2000 + seed),
         held_events_s: vec![],
+        generic_truth: None,
     }
 }

@@ -1,0 +1,277 @@
+//! Generic structures for what no library effect explains: a pure delay,
+//! a lightly damped resonance, a gain drifting with time, a constant
+//! unmeasured force. Each is a shape with one or two parameters on a grid
+//! and a linear amplitude, fitted on the training remainder of the primary
+//! channel and scored on the held-out remainder, like the library. None is
+//! built from the channel's own measured output: the delay and the drift
+//! act on the channel's *nominal* prediction (from the motion and the
+//! load), the resonance is driven by the nominal thrust (or, on the
+//! position channel, the motor's thrust from the logged current).
+
+use super::effects::{Effect, MAXP};
+use super::events::Remainder;
+use super::figures::shrink;
+use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE, VOLTAGE};
+
+/// A generic structure names the remainder when it removes at least this
+/// share of what the stack leaves on its channel, held-out and on training — a
+/// quarter, the bar the remainder's character uses for a structure — and
+/// at least `GENERIC_LEAD` times what the best other class removes.
+pub const GENERIC_MIN_PCT: f64 = 25.0;
+pub const GENERIC_LEAD: f64 = 1.5;
+
+/// The generic structure that names the remainder, if one does.
+pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
+    let best = fits.first()?;
+    let other = fits
+        .iter()
+        .filter(|g| g.class != best.class)
+        .map(|g| g.remainder_shrink_pct)
+        .fold(0.0f64, f64::max);
+    (best.remainder_shrink_pct >= GENERIC_MIN_PCT
+        && best.train_shrink_pct >= GENERIC_MIN_PCT
+        && best.remainder_shrink_pct >= GENERIC_LEAD * other)
+        .then_some(best)
+}
+
+/// One generic structure fitted and scored.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GenericFit {
+    /// `delay`, `resonance`, `gain_drift`, `constant_force`.
+    pub class: String,
+    /// The channel it is fitted and scored on.
+    pub channel: String,
+    /// The parameters with their units in the names (`delay_ms`,
+    /// `frequency_hz`, `damping_ratio`, `drift_per_s`, `level_n`, …).
+    pub params: std::collections::BTreeMap<String, f64>,
+    /// Held-out shrink of its channel's gap against the nominal, %.
+    pub primary_shrink_pct: f64,
+    /// Held-out shrink of what the stack leaves on its channel (what it
+    /// explains of the remainder), %, and the same on training.
+    pub remainder_shrink_pct: f64,
+    pub train_shrink_pct: f64,
+}
+
+/// The channel's nominal prediction (logged signal minus residual).
+fn nominal_pred(s: &Segment, c: usize) -> Vec<f64> {
+    match (&s.y[c], &s.r[c]) {
+        (Some(y), Some(r)) => y.iter().zip(r).map(|(y, r)| y - r).collect(),
+        _ => vec![0.0; s.len()],
+    }
+}
+
+/// What drives a resonance seen on channel `c`: the thrust on the screw.
+fn thrust(s: &Segment, c: usize, nominal: &Nominal) -> Vec<f64> {
+    match (nominal, c) {
+        // The position channel (scale − motor side) is not the current:
+        // the motor's thrust from the logged current drives the frame.
+        (Nominal::Physics(p), POSITION) => s.iq.iter().map(|i| p.kt * i / p.k).collect(),
+        (Nominal::Physics(p), _) => s.f_ax.iter().map(|f| f * p.k).collect(),
+        _ => nominal_pred(s, c),
+    }
+}
+
+/// The ringing part `y − u` of `y'' + 2ζω y' + ω² y = ω² u`, `u` held over
+/// each sample step (10 sub-steps, semi-implicit Euler).
+fn ringing(u: &[f64], dt: f64, f_hz: f64, zeta: f64) -> Vec<f64> {
+    let w = std::f64::consts::TAU * f_hz;
+    let h = dt / 10.0;
+    let (mut y, mut v) = (u.first().copied().unwrap_or(0.0), 0.0);
+    u.iter()
+        .map(|uk| {
+            for _ in 0..10 {
+                v += h * (w * w * (uk - y) - 2.0 * zeta * w * v);
+                y += h * v;
+            }
+            y - uk
+        })
+        .collect()
+}
+
+/// Regressors (one or two per sample) of a class at a grid point.
+type Shape = dyn Fn(&Segment) -> Vec<Vec<f64>>;
+
+/// Least squares of the weighted remainder on the regressors; returns the
+/// coefficients.
+fn lsq(segs: &[&Segment], rem: &Remainder, c: usize, x: &[Vec<Vec<f64>>]) -> Vec<f64> {
+    let p = x.iter().flat_map(|v| v.first()).map(Vec::len).next().unwrap_or(0);
+    if p == 0 {
+        return Vec::new();
+    }
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
+    let mut atb = nalgebra::DVector::<f64>::zeros(p);
+    for ((s, r), xs) in segs.iter().zip(rem).zip(x) {
+        let Some(y) = &r[c] else { continue };
+        for i in 0..s.len() {
+            let w2 = s.weight(c, i).powi(2);
+            for a in 0..p {
+                atb[a] += w2 * xs[i][a] * y[i];
+                for b in 0..p {
+                    ata[(a, b)] += w2 * xs[i][a] * xs[i][b];
+                }
+            }
+        }
+    }
+    ata.svd(true, true)
+        .solve(&atb, 1e-12)
+        .map(|v| v.iter().copied().collect())
+        .unwrap_or_else(|_| vec![0.0; p])
+}
+
+/// Weighted RMS of channel `c` of a remainder minus an optional prediction.
+fn rms(segs: &[&Segment], rem: &Remainder, c: usize, x: Option<(&[Vec<Vec<f64>>], &[f64])>) -> f64 {
+    let (mut ss, mut n) = (0.0, 0usize);
+    for (k, (s, r)) in segs.iter().zip(rem).enumerate() {
+        let Some(y) = &r[c] else { continue };
+        for i in 0..s.len() {
+            let p = x.map_or(0.0, |(xs, b)| xs[k][i].iter().zip(b).map(|(a, b)| a * b).sum());
+            ss += (s.weight(c, i) * (y[i] - p)).powi(2);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (ss / n as f64).sqrt()
+    }
+}
+
+/// Fits every generic class on the torque and position channels of the
+/// training remainder and scores each on the held-out remainder against
+/// the nominal's held-out RMS of its channel. Best first.
+pub fn fit_all(
+    train: &[&Segment],
+    rem_t: &Remainder,
+    held: &[&Segment],
+    rem_h: &Remainder,
+    nominal: &Nominal,
+) -> Vec<GenericFit> {
+    let mut out: Vec<GenericFit> = [TORQUE, POSITION]
+        .into_iter()
+        .flat_map(|c| {
+            let mut wc = [0.0; NCH];
+            wc[c] = 1.0;
+            let before = super::fit::gap(held, None, &wc);
+            fit(train, rem_t, held, rem_h, nominal, c, before)
+        })
+        .collect();
+    out.sort_by(|a, b| b.remainder_shrink_pct.total_cmp(&a.remainder_shrink_pct));
+    out
+}
+
+/// Fits every generic class on channel `c` of the training remainder and
+/// scores it on the held-out remainder; `nominal_rms_h`: the nominal's
+/// held-out RMS on `c` (the shrink's reference). Best first.
+pub fn fit(
+    train: &[&Segment],
+    rem_t: &Remainder,
+    held: &[&Segment],
+    rem_h: &Remainder,
+    nominal: &Nominal,
+    c: usize,
+    nominal_rms_h: f64,
+) -> Vec<GenericFit> {
+    if c == VOLTAGE || !train.iter().any(|s| s.r[c].is_some()) {
+        return Vec::new();
+    }
+    let dt = train.first().map_or(1e-3, |s| s.dt);
+    let mut out = Vec::new();
+    // Each class: grid of (parameters, shape); the grid point chosen on
+    // training by what it leaves, the amplitude fitted there too.
+    let mut try_class = |class: &str, grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)>, scale: &dyn Fn(&[f64]) -> Vec<(&'static str, f64)>| {
+        let base_t = rms(train, rem_t, c, None);
+        let best = grid
+            .into_iter()
+            .map(|(params, shape)| {
+                let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
+                let b = lsq(train, rem_t, c, &xt);
+                let after = rms(train, rem_t, c, Some((&xt, &b)));
+                (params, shape, b, after)
+            })
+            .min_by(|a, b| a.3.total_cmp(&b.3));
+        let Some((params, shape, b, after_t)) = best else { return };
+        let xh: Vec<Vec<Vec<f64>>> = held.iter().map(|s| shape(s)).collect();
+        let after_h = rms(held, rem_h, c, Some((&xh, &b)));
+        let mut g = GenericFit {
+            class: class.into(),
+            channel: super::residual::CHANNELS[c].into(),
+            primary_shrink_pct: shrink(nominal_rms_h, after_h),
+            remainder_shrink_pct: shrink(rms(held, rem_h, c, None), after_h),
+            train_shrink_pct: shrink(base_t, after_t),
+            ..Default::default()
+        };
+        for (k, v) in params.into_iter().chain(scale(&b)) {
+            g.params.insert(k.into(), v);
+        }
+        out.push(g);
+    };
+    // A pure delay: the channel's logged output early (k > 0) or late
+    // against the motion by k samples: N(t + k dt) − N(t), amplitude ≈ 1.
+    let kmax = ((0.02 / dt).round() as i64).max(2);
+    let delay_grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = (-kmax..=kmax)
+        .filter(|k| *k != 0)
+        .map(|k| {
+            let shape: Box<Shape> = Box::new(move |s: &Segment| {
+                let nv = nominal_pred(s, c);
+                let n = nv.len() as i64;
+                (0..n)
+                    .map(|i| vec![nv[(i + k).clamp(0, n - 1) as usize] - nv[i as usize]])
+                    .collect()
+            });
+            (vec![("delay_ms", 1e3 * k as f64 * dt)], shape)
+        })
+        .collect();
+    try_class("delay", delay_grid, &|b| vec![("amplitude", b.first().copied().unwrap_or(0.0))]);
+    // A lightly damped resonance driven by the thrust, up to a fifth of the
+    // sampling rate.
+    let f_max = (0.2 / dt).min(150.0);
+    let mut res_grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = Vec::new();
+    if f_max > 6.0 {
+        // Steps of 4 % in frequency: a resonance with ζ = 0.02 is 4 % wide.
+        let nf = ((f_max / 5.0f64).ln() / 1.04f64.ln()).ceil() as usize + 1;
+        for j in 0..nf {
+            let f = 5.0 * (f_max / 5.0f64).powf(j as f64 / (nf - 1) as f64);
+            for zeta in [0.01, 0.02, 0.05, 0.1, 0.3] {
+                let nominal = nominal.clone();
+                let shape: Box<Shape> = Box::new(move |s: &Segment| {
+                    ringing(&thrust(s, c, &nominal), s.dt, f, zeta)
+                        .into_iter()
+                        .map(|v| vec![v])
+                        .collect()
+                });
+                res_grid.push((vec![("frequency_hz", f), ("damping_ratio", zeta)], shape));
+            }
+        }
+        try_class("resonance", res_grid, &|b| vec![("gain", b.first().copied().unwrap_or(0.0))]);
+    }
+    // A gain drifting with time: the nominal prediction × log time.
+    let drift: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = vec![(
+        Vec::new(),
+        Box::new(move |s: &Segment| {
+            let nv = nominal_pred(s, c);
+            nv.iter().zip(&s.t).map(|(n, t)| vec![n * t, *t]).collect()
+        }),
+    )];
+    try_class("gain_drift", drift, &|b| {
+        vec![("drift_per_s", b.first().copied().unwrap_or(0.0)), ("offset_drift_per_s", b.get(1).copied().unwrap_or(0.0))]
+    });
+    // A constant unmeasured force: the load offset's regressors on `c`.
+    if matches!(nominal, Nominal::Physics(_)) && (c == TORQUE || c == POSITION) {
+        let nominal = nominal.clone();
+        let cf: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = vec![(
+            Vec::new(),
+            Box::new(move |s: &Segment| {
+                let mut buf = [[0.0; NCH]; MAXP];
+                (0..s.len())
+                    .map(|i| {
+                        Effect::LoadOffset.regressors(0.0, s, i, &nominal, &mut buf);
+                        vec![buf[0][c]]
+                    })
+                    .collect()
+            }),
+        )];
+        try_class("constant_force", cf, &|b| vec![("level_n", b.first().copied().unwrap_or(0.0))]);
+    }
+    out.sort_by(|a, b| b.primary_shrink_pct.total_cmp(&a.primary_shrink_pct));
+    out
+}
