@@ -129,10 +129,11 @@ pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
         let dt = r.t_s - prev.t_s;
         match l.period_s {
             Some(t) if (dt - t).abs() > PERIOD_TOLERANCE * t => errors.push(format!(
-                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {dt}",
+                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {:.6}",
                 dt * 1e3,
                 t * 1e3,
-                1.0 / t
+                1.0 / t,
+                dt
             )),
             None if dt < l.interval_min_s * (1.0 - PERIOD_TOLERANCE) || dt > l.interval_max_s * (1.0 + PERIOD_TOLERANCE) => errors.push(format!(
                 "{name}:{row}:t_s: a step of {:.3} ms; the drive takes {:.3} … {:.3} ms (position-loop period … control.stream.period_max_s)",
