@@ -129,10 +129,11 @@ pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
         let dt = r.t_s - prev.t_s;
         match l.period_s {
             Some(t) if (dt - t).abs() > PERIOD_TOLERANCE * t => errors.push(format!(
-                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {dt}",
+                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {:.6}",
                 dt * 1e3,
                 t * 1e3,
-                1.0 / t
+                1.0 / t,
+                dt
             )),
             None if dt < l.interval_min_s * (1.0 - PERIOD_TOLERANCE) || dt > l.interval_max_s * (1.0 + PERIOD_TOLERANCE) => errors.push(format!(
                 "{name}:{row}:t_s: a step of {:.3} ms; the drive takes {:.3} … {:.3} ms (position-loop period … control.stream.period_max_s)",
@@ -180,6 +181,10 @@ pub struct StreamReport {
     pub tracking_rms_um: Option<f64>,
     pub tracking_max_um: Option<f64>,
     pub telemetry_records: usize,
+    /// The telemetry records behind the tracking figures: (drive time s,
+    /// position reference m, motor position m).
+    #[serde(skip)]
+    pub tracking_trace: Vec<[f64; 3]>,
     /// Faults latched at the end of the stream, by name.
     pub faults: Vec<String>,
 }
@@ -267,8 +272,10 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
     let end = client.request(Request::Command(DriveCommand::Stop));
     let wall_s = t0.elapsed().as_secs_f64();
     let mut errs: Vec<f64> = Vec::new();
+    let mut trace: Vec<[f64; 3]> = Vec::new();
     if tracking {
-        errs = client.telemetry.drain(..).map(|t| f64::from(t.values[0]) - f64::from(t.values[1])).collect();
+        trace = client.telemetry.drain(..).map(|t| [f64::from(t.time_s), f64::from(t.values[0]), f64::from(t.values[1])]).collect();
+        errs = trace.iter().map(|r| r[1] - r[2]).collect();
         client.request(Request::Telemetry { fields: 0, rate_hz: 0 })?;
         client.telemetry.clear();
     }
@@ -288,6 +295,7 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
         tracking_rms_um: rms,
         tracking_max_um: max,
         telemetry_records: errs.len(),
+        tracking_trace: trace,
         faults,
     };
     for u in client.unsolicited.drain(..) {

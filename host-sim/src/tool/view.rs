@@ -154,7 +154,10 @@ pub fn watch(c: &mut Client, rate_hz: f64, seconds: f64) -> Result<usize> {
     use ratatui::layout::{Constraint, Layout};
     use ratatui::style::{Color, Style};
     use ratatui::widgets::{Block, Borders, Row, Sparkline, Table};
-    let mut terminal = ratatui::init();
+    if !std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        bail!("`watch` needs a terminal; for a record, use `telemetry --csv FILE`, for one look `status`");
+    }
+    let mut terminal = ratatui::try_init().context("opening the terminal for `watch`")?;
     let period = Duration::from_secs_f64(1.0 / rate_hz.max(1.0));
     let t0 = Instant::now();
     let mut frames = 0usize;
