@@ -536,7 +536,7 @@ fn schema_hashes() -> (String, String) {
 /// `ControlParams::validate` about 0 and a negative value on the defaults
 /// (`min` with `min_exclusive`). Bounds between fields (stroke min < max, …)
 /// are the drive's to report at `param set`. JSON list of {path, kind,
-/// value, min, min_exclusive}.
+/// value, min, min_exclusive, max_abs}.
 #[pyfunction]
 fn defaults() -> String {
     let p = ControlParams::default();
@@ -556,7 +556,10 @@ fn defaults() -> String {
                     protocol::ValueKind::U32 if rejects(path, i, protocol::Value::U32(0)) => (Some(1.0), false),
                     _ => (None, false),
                 };
-                serde_json::json!({ "path": path, "kind": kind_name(kind), "value": v.map(|v| value_json(path, &v)), "min": min, "min_exclusive": exclusive })
+                // The core's physical range: the largest size the leaf may have
+                // (by its unit, from the default set's ratings).
+                let max_abs = servo_core::params::ranges::leaf_bound(i, &p).filter(|b| b.is_finite() && *b > 0.0);
+                serde_json::json!({ "path": path, "kind": kind_name(kind), "value": v.map(|v| value_json(path, &v)), "min": min, "min_exclusive": exclusive, "max_abs": max_abs })
             })
             .collect(),
     ))

@@ -77,3 +77,14 @@ def test_save_and_load_through_the_store(tmp_path):
 def test_save_refused_with_bridge_on(running):
     with pytest.raises(sd.Refused):
         running.save()
+
+
+def test_core_range_is_listed_and_enforced(drive):
+    ps = {p.path: p for p in drive.parameters()}
+    bounded = [p for p in ps.values() if p.max_abs is not None and p.kind == "float" and p.min is not None]
+    assert bounded, "the core states physical ranges"
+    p = bounded[0]
+    with pytest.raises(sd.ParameterRejected) as e:
+        drive.set(p.path, p.max_abs * 10)
+    assert e.value.field == p.path
+    assert drive.get(p.path) == pytest.approx(p.value)

@@ -214,7 +214,7 @@ class Drive:
             meta = _DEFAULTS.get(p, {})
             out.append(Parameter(path=p, value=d["value"], kind=_KIND.get(p, "?"), unit=unit_of(p),
                                  default=meta.get("value"), min=meta.get("min"),
-                                 min_exclusive=bool(meta.get("min_exclusive"))))
+                                 min_exclusive=bool(meta.get("min_exclusive")), max_abs=meta.get("max_abs")))
         return out
 
     def params_dict(self) -> Dict[str, Any]:

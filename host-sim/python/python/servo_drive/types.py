@@ -111,12 +111,18 @@ class Parameter:
     default: Any = None
     min: Optional[float] = None
     min_exclusive: bool = False
+    #: The core's physical range: the largest size (absolute value) the leaf may have,
+    #: from its unit and the default set's ratings; None where the core bounds it otherwise.
+    max_abs: Optional[float] = None
 
     @property
     def range_text(self) -> str:
-        if self.min is None:
-            return ""
-        return f"{'>' if self.min_exclusive else '>='} {self.min:g}"
+        parts = []
+        if self.min is not None:
+            parts.append(f"{'>' if self.min_exclusive else '>='} {self.min:g}")
+        if self.max_abs is not None:
+            parts.append(f"|x| <= {self.max_abs:g}")
+        return ", ".join(parts)
 
 
 @dataclass
