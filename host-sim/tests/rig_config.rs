@@ -98,8 +98,13 @@ mod family {
             within(p.motor.flux_linkage_wb, base.motor.flux_linkage_wb, 0.9, 1.03, n);
             assert!(p.screw.lead_error_m_per_m.abs() <= C7_LEAD_ERROR_M_PER_M, "{n}");
             assert!((0.0..std::f64::consts::TAU).contains(&p.sensors.encoder_zero_rad), "{n}");
-            // The drive's belief is the base's.
-            assert_eq!(r.rig.control, RigConfig::nominal().unwrap().control, "{n}");
+            // The drive's belief is the base's, but for the load the user
+            // states: the rig's weight at its tilt.
+            let mut control = r.rig.control;
+            let weight = (p.moving_mass_kg() * 9.81) as f32;
+            assert!((control.startup.expected_load_force_n - weight).abs() <= 1e-3 * weight, "{n}");
+            control.startup.expected_load_force_n = 1380.0;
+            assert_eq!(control, RigConfig::nominal().unwrap().control, "{n}");
         }
         // Drawn rigs differ from each other; the corners are what they say.
         assert_ne!(rigs[0].rig.plant, rigs[1].rig.plant);

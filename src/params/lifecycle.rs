@@ -86,12 +86,14 @@ pub struct CommutationParams {
     pub max_twist_rad: f32,
     /// d-axis (stiffness) part of the stationary hold vector.
     pub hold_current_d_a: f32,
-    /// Electrical angle of each of the two check steps (0.2 rad, 11.5°:
-    /// 0.04 mm of rod each, 0.08 mm out and back).
+    /// Electrical angle of the check move (0.2 rad, 11.5°: 0.04 mm of rod);
+    /// the dither on top swings half of it.
     pub check_angle_rad: f32,
     /// Time for the check move each way (raised cosine).
     pub check_time_s: f32,
-    /// |measured / expected rotation − 1| above this: wrong pole pairs.
+    /// Bound for `blocked_ratio` (which must stay below `1 − this`). The
+    /// wrong-pole-count threshold itself sits midway between 1 and the
+    /// neighbouring counts' ratios `p/(p ± 1)` (`lifecycle::commutation`).
     pub ratio_tolerance: f32,
     /// |measured / expected rotation| below this: the rotor is blocked.
     pub blocked_ratio: f32,

@@ -108,12 +108,18 @@ fn rig_file_text(
     let plant = doc.entry("plant").or_insert(toml_edit::table());
     let plant = plant.as_table_like_mut().ok_or_else(|| anyhow!("{origin}: `plant` is not a table"))?;
     set_changed(plant, &old, &new, "plant")?;
+    let old = toml::Value::try_from(base.control)?;
+    let new = toml::Value::try_from(rig.control)?;
+    let control = doc.entry("control").or_insert(toml_edit::table());
+    let control = control.as_table_like_mut().ok_or_else(|| anyhow!("{origin}: `control` is not a table"))?;
+    set_changed(control, &old, &new, "control")?;
     let d = &m.draw;
     let mut h = String::new();
     let _ = writeln!(h, "# Rig `{}` of a family drawn by `host-sim rigs --seed {seed}` from {origin}.", m.name);
     let _ = writeln!(h, "# A second unit of the same cylinder: [plant] differs from the base as");
     let _ = writeln!(h, "# below (each changed value says so on its line); [control] is the");
-    let _ = writeln!(h, "# base's, the drive's unchanged belief. Tolerances: stiffness ±{:.0} %,", spec.stiffness_tol * 100.0);
+    let _ = writeln!(h, "# base's, the drive's belief, but for the load the user states for it");
+    let _ = writeln!(h, "# (startup.expected_load_force_n). Tolerances: stiffness ±{:.0} %,", spec.stiffness_tol * 100.0);
     let _ = writeln!(
         h,
         "# friction ±{:.0} %, payload {:.0}–{:.0} % of rated, inertia ±{:.0} %, R {:+.0}…{:+.0} %,",

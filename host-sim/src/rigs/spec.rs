@@ -130,8 +130,9 @@ impl Draw {
         }
     }
 
-    /// `base` with this draw applied to its `[plant]` (the `[control]`
-    /// table, the drive's belief, stays the base's).
+    /// `base` with this draw applied to its `[plant]`; of `[control]`, the
+    /// drive's belief, only the expected load at power-up follows the rig
+    /// (a user states the load their cylinder carries).
     pub fn apply(&self, base: &RigConfig) -> RigConfig {
         let mut rig = base.clone();
         let p = &mut rig.plant;
@@ -161,6 +162,11 @@ impl Draw {
         p.motor.flux_linkage_wb *= self.flux;
         p.screw.lead_error_m_per_m += self.lead_error_m_per_m;
         p.sensors.encoder_zero_rad = self.encoder_zero_rad;
+        // The one [control] value a user states for their own cylinder: the
+        // load it carries at power-up (the hold vector is pointed for it).
+        let load = p.moving_mass_kg() * p.load.gravity_m_s2 * p.load.initial_tilt_deg.to_radians().sin()
+            + p.load.initial_external_force_n;
+        rig.control.startup.expected_load_force_n = load as f32;
         rig
     }
 }
