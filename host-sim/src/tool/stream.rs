@@ -181,6 +181,10 @@ pub struct StreamReport {
     pub tracking_rms_um: Option<f64>,
     pub tracking_max_um: Option<f64>,
     pub telemetry_records: usize,
+    /// The telemetry records behind the tracking figures: (drive time s,
+    /// position reference m, motor position m).
+    #[serde(skip)]
+    pub tracking_trace: Vec<[f64; 3]>,
     /// Faults latched at the end of the stream, by name.
     pub faults: Vec<String>,
 }
@@ -268,8 +272,10 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
     let end = client.request(Request::Command(DriveCommand::Stop));
     let wall_s = t0.elapsed().as_secs_f64();
     let mut errs: Vec<f64> = Vec::new();
+    let mut trace: Vec<[f64; 3]> = Vec::new();
     if tracking {
-        errs = client.telemetry.drain(..).map(|t| f64::from(t.values[0]) - f64::from(t.values[1])).collect();
+        trace = client.telemetry.drain(..).map(|t| [f64::from(t.time_s), f64::from(t.values[0]), f64::from(t.values[1])]).collect();
+        errs = trace.iter().map(|r| r[1] - r[2]).collect();
         client.request(Request::Telemetry { fields: 0, rate_hz: 0 })?;
         client.telemetry.clear();
     }
@@ -289,6 +295,7 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
         tracking_rms_um: rms,
         tracking_max_um: max,
         telemetry_records: errs.len(),
+        tracking_trace: trace,
         faults,
     };
     for u in client.unsolicited.drain(..) {
