@@ -43,7 +43,7 @@ use hw::comms::{self, FlashStore};
 use panic_probe as _;
 use servo_core::params::{record, ValidatedParams};
 use hw::can_stream::CanStream;
-use servo_core::protocol::{self as proto, DriveFrame, FrameReader, ParamStore, Server};
+use servo_core::protocol::{self as proto, BootRecord, DriveFrame, FrameReader, ParamStore, RecordRejection, Server};
 use servo_core::{Command, Controller, FaultSet, Mode};
 
 /// Telemetry records per second over RTT. A `Telemetry` frame is ≈ 90 bytes
@@ -192,7 +192,7 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     // parameters live on its stack frame, not in the main task's state
     // (an async body keeps every local whose scope spans an `await`).
     let hazards = BoardHazards { no_hardware_break: !status.hw_overcurrent_armed, boot_pin_live: !hw::brake::boot_pin_ignored() };
-    let params = install_controller(&mut store, watchdog_reset, hazards);
+    let (params, boot_record) = install_controller(&mut store, watchdog_reset, hazards);
     let mut can_termination = params.stream.can_termination;
     comms::set_termination(can_termination);
 
@@ -200,6 +200,7 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     let mut tick: u32 = 0;
     let mut button_was = false;
     let mut server = Server::new(IDENTITY, board::VALID_PARAMS);
+    server.set_boot_record(boot_record);
     let mut reader = FrameReader::new();
     let params_cache = ParamsCache::new(params);
     let mut rx_bytes = [0u8; 64];
@@ -340,8 +341,8 @@ struct BoardHazards {
 /// `control.startup.run_at_power_up` and hands it to the interrupt; the
 /// parameters it runs with.
 #[inline(never)]
-fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: BoardHazards) -> servo_core::ControlParams {
-    let boot_params = load_params(store);
+fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: BoardHazards) -> (servo_core::ControlParams, BootRecord) {
+    let (boot_params, boot_record) = load_params(store);
     let params = *boot_params.get();
     let mut controller = Controller::from_validated(boot_params);
     // The capture store, before the controller goes to the interrupt.
@@ -371,30 +372,32 @@ fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: Boa
     if link::install_controller(controller).is_err() {
         error!("a controller was installed already");
     }
-    params
+    (params, boot_record)
 }
 
 /// The parameters to start with: the record saved in flash if it is whole,
 /// of this schema and valid (lowered to the board's ratings, like the
 /// image's), else the image's own; the log says which and why.
-fn load_params(store: &mut FlashStore) -> ValidatedParams {
+/// With what became of the saved record, for `Info` and `Status`.
+fn load_params(store: &mut FlashStore) -> (ValidatedParams, BootRecord) {
+    let rejected = |why: RecordRejection, leaf: u16| BootRecord::Rejected { why, leaf };
     let mut buf = [0u8; record::RECORD_MAX];
     let n = match store.load(&mut buf) {
         Ok(0) => {
             info!("parameters: image defaults (no record in flash)");
-            return board::VALID_PARAMS;
+            return (board::VALID_PARAMS, BootRecord::NoRecord);
         }
         Ok(n) => n,
         Err(why) => {
             warn!("parameters: image defaults (flash: {=str})", why.as_str());
-            return board::VALID_PARAMS;
+            return (board::VALID_PARAMS, rejected(RecordRejection::Storage, u16::MAX));
         }
     };
     let saved = match record::decode(buf.get(..n).unwrap_or(&[])) {
         Ok(p) => p,
         Err(e) => {
             warn!("parameters: image defaults (flash record refused: {=str})", e.reason());
-            return board::VALID_PARAMS;
+            return (board::VALID_PARAMS, BootRecord::of_error(&e));
         }
     };
     let (lowered, applied) = hw::apply_board_limits(*saved.get());
@@ -407,17 +410,17 @@ fn load_params(store: &mut FlashStore) -> ValidatedParams {
                 "parameters: image defaults (saved set asks for leaf {=u16}, control.stream.can_termination, which this board cannot switch)",
                 servo_core::leaf!(stream.can_termination)
             );
-            board::VALID_PARAMS
+            (board::VALID_PARAMS, rejected(RecordRejection::Invalid, servo_core::leaf!(stream.can_termination)))
         }
         Ok(v) => {
             info!("parameters: loaded from flash ({=usize} bytes, schema checked)", n);
-            v
+            (v, BootRecord::Loaded)
         }
         Err(e) => {
             // The leaf by index: the image holds no parameter names
             // (`drive param list` shows index and path).
             warn!("parameters: image defaults (saved set invalid on this board: leaf {=u16}: {})", e.leaf, e.reason);
-            board::VALID_PARAMS
+            (board::VALID_PARAMS, rejected(RecordRejection::Invalid, e.leaf))
         }
     }
 }
