@@ -1,6 +1,6 @@
 //! The Cranfield linear-actuator data (real ball-screw rig): converter,
 //! validation, and the diagnosis of the faulty runs against a nominal fitted
-//! on the healthy runs (issue 4 §7). The data sit beside the repository in
+//! on the healthy runs. The data sit beside the repository in
 //! `../shared/data/cranfield-linear-actuator/`.
 
 use host_sim::diagnose::residual::{fit_regression, Nominal};

@@ -1,4 +1,4 @@
-//! What the ranking must not do (issue 4 §4): rank effects the data cannot
+//! What the ranking must not do: rank effects the data cannot
 //! tell apart without flagging them, or rank an effect whose fit did not
 //! converge.
 

@@ -1,4 +1,4 @@
-//! Baseline gates and plausibility (issue 13 §1, §4): a log diagnosed
+//! Baseline gates and plausibility: a log diagnosed
 //! against itself or its reference is flagged and nothing is named; the
 //! wrong rig file is flagged with the channel and the figure before any
 //! finding; implausible fits are reported, not ranked; with `--reference`

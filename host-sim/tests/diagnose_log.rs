@@ -1,5 +1,5 @@
 //! Input of `host-sim diagnose`: the CSV schema, defmt telemetry and the
-//! validation that names the row of every problem (issue 4 §1, bad input).
+//! validation that names the row of every problem (bad input).
 
 use host_sim::diagnose::log::{parse_defmt, Log, Severity};
 use std::io::Write;

@@ -1,4 +1,4 @@
-//! Open-world suite (issue 13 §6): truth rigs whose effect the ranked
+//! Open-world suite: truth rigs whose effect the ranked
 //! library does not hold — each library effect held out in turn, and
 //! effects the library never had (unmeasured force steps and pulses,
 //! sensor delay, structural resonance, torque-constant drop with
@@ -442,7 +442,7 @@ fn specs(base: u64, novel_reps: u64) -> Vec<Spec> {
 /// Seed offset of the held-out draws: cases never looked at while the
 /// thresholds and the disturbance were set (those were set on seeds 0, 1).
 const HOLDOUT_SEED_BASE: u64 = 100;
-/// Seed offset of the second held-out draws (issue 13, character rules):
+/// Seed offset of the second held-out draws (character rules):
 /// drawn like the first, run once after the method was fixed on the tuning
 /// and the first held-out seeds. Its failures were then studied (the
 /// verdict's gate, group, adequacy and flux rules, the primary channel):

@@ -1,4 +1,4 @@
-//! A 60 s log at 1 kHz diagnosed within 60 s on one core (issue 4 figure),
+//! A 60 s log at 1 kHz diagnosed within 60 s on one core,
 //! and the report it writes (markdown, summary.json, PNG plots), through the
 //! CLI's code path. The log comes from a truth rig on the full simulator
 //! (plant with a Stribeck effect + the control core, moves planned by the

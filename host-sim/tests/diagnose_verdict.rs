@@ -1,4 +1,4 @@
-//! The open-world verdict's rules (issue 13, second held-out set): a
+//! The open-world verdict's rules (second held-out set): a
 //! fired baseline gate governs the verdict, effects the log cannot
 //! separate are named as a group, a named effect must leave a remainder
 //! that the inputs no longer explain, and a current-sensor gain whose

@@ -1,4 +1,4 @@
-//! Withheld-effect suite (issue 4 §7): a truth rig = nominal + one library
+//! Withheld-effect suite: a truth rig = nominal + one library
 //! effect with random plausible parameters (some cases two), data from a
 //! trajectory other than the fitting one; the tool gets only the nominal
 //! description and the logs. Writes the confusion matrix to

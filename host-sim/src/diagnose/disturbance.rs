@@ -1,4 +1,4 @@
-//! The disturbance effect (issue 13 §3): an unmeasured external force (or
+//! The disturbance effect: an unmeasured external force (or
 //! a disturbance on the actuator input) estimated as a signal, piecewise
 //! constant between change points of the residual.
 //!

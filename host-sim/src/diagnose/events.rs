@@ -1,4 +1,4 @@
-//! The remainder's character (issue 13 §2): from its events and time
+//! The remainder's character: from its events and time
 //! structure — energy after change points against the share of time,
 //! event-locked averages, the dominant period, whiteness, the slow (drift)
 //! share and what the inputs explain — the remainder is named event-locked,

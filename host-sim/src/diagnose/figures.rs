@@ -1,5 +1,5 @@
 //! One definition of each shrink figure, used by the verdict, the ranking
-//! table and `summary.json` alike (issue 13 §5).
+//! table and `summary.json` alike.
 //!
 //! Both are on the held-out part, on the standstill weights of the torque
 //! and position channels (`Segment::weight`), `100 (1 − after / before)`

@@ -1,4 +1,4 @@
-//! Baseline gates (issue 13 §4): checks on the nominal and on the data
+//! Baseline gates: checks on the nominal and on the data
 //! that come before any finding, each with its figures.
 
 use super::log::Log;

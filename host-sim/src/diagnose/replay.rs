@@ -1,4 +1,4 @@
-//! Closed-loop replay (issue 4 §2a): the nominal plant and the very control
+//! Closed-loop replay: the nominal plant and the very control
 //! core of the firmware, driven by the logged reference and load, every
 //! logged signal compared with its replayed counterpart.
 //!

@@ -1,4 +1,4 @@
-//! The open-world verdict (issue 13 §1): after ranking and stacking, how
+//! The open-world verdict: after ranking and stacking, how
 //! much of the held-out gap remains and what the remainder looks like. A
 //! library effect is named as the cause only when it (its stack) removes
 //! most of the gap, its parameters are stable, what it leaves is not still

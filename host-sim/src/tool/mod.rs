@@ -511,13 +511,10 @@ pub fn param_get(c: &mut Client, path: &str) -> Result<Value> {
 
 /// Reads the parameter first to learn its type, then sets `text` as that type.
 pub fn param_set(c: &mut Client, path: &str, text: &str) -> Result<Value> {
-    let kind = match param_get(c, path)? {
-        Value::F32(_) => servo_core::protocol::ValueKind::F32,
-        Value::U32(_) => servo_core::protocol::ValueKind::U32,
-        Value::I32(_) => servo_core::protocol::ValueKind::I32,
-        Value::Bool(_) => servo_core::protocol::ValueKind::Bool,
-        Value::Variant(_) => servo_core::protocol::ValueKind::Variant,
-    };
+    // The type from the leaf table both ends share (the schema hash was
+    // checked at connect): no round trip to learn it.
+    param_index(path)?;
+    let kind = servo_core::protocol::params::kind(&params::full_path(path)).map_err(|_| anyhow!("no parameter `{path}`"))?;
     let value = params::parse_value_at(&params::full_path(path), kind, text).map_err(|e| anyhow!("{path}: {e}; nothing was sent"))?;
     param_set_value(c, path, value)
 }

@@ -1,4 +1,4 @@
-//! Open-world truth rigs (issue 13 §6): effects the ranked library does
+//! Open-world truth rigs: effects the ranked library does
 //! not hold. An unmeasured force with a time course acts in the plant
 //! (`UnmodelledEffects::load_pulses`); the sensor and drive effects are
 //! applied to the logged signals where they physically arise (between the

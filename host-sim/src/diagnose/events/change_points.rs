@@ -1,4 +1,4 @@
-//! Change points (issue 13 §2): where the residual steps (a two-window
+//! Change points: where the residual steps (a two-window
 //! statistic in robust sigmas, over the torque and position channels) and
 //! where the logged signals change (move starts and stops, the reference
 //! acceleration's phases, the logged load). Kept apart from what is measured

@@ -1,4 +1,4 @@
-//! Drift or level shift (issue 13 §2): whether the remainder's slow part
+//! Drift or level shift: whether the remainder's slow part
 //! is one step (an event) or a trend (a drift). Both carry most of their
 //! energy slower than `SLOW_S`; only the shape tells them apart.
 

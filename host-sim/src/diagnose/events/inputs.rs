@@ -1,4 +1,4 @@
-//! What the inputs explain of the remainder (issue 13 §2): cross-validated
+//! What the inputs explain of the remainder: cross-validated
 //! least squares on the logged inputs and their derivatives, and the
 //! nonparametric (binned) regression on one input at a time. A remainder
 //! the inputs predict is a model error, not an unmeasured disturbance.

@@ -1,4 +1,4 @@
-//! Event-locked energy (issue 13 §2): how much of the residual's energy
+//! Event-locked energy: how much of the residual's energy
 //! falls in the windows after events against the share of time those
 //! windows cover, and how many change points sit at a logged-signal event.
 //! A remainder that an unmeasured force leaves concentrates there; one the

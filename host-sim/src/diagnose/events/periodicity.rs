@@ -1,4 +1,4 @@
-//! Periodicity and whiteness (issue 13 §2): the remainder's autocorrelation
+//! Periodicity and whiteness: the remainder's autocorrelation
 //! (for its dominant time period and the Ljung–Box whiteness test) and its
 //! periodicity in the motor angle at the kinematic periods known before the
 //! data are seen (screw revolution, electrical period). A disturbance tied
