@@ -496,14 +496,17 @@ fn open_world_suite() {
     write("open", &figures, &rep);
 }
 
+/// Seed offset of an earlier held-out set of generic-structure draws,
+/// since studied while the classes were changed (a development set now).
+const GENERIC_SEEN_SEED_BASE: u64 = 500;
 /// Seed offset of the generic-structure draws held out from their
-/// development (the tuning draws are seeds 0–3).
-const GENERIC_HOLDOUT_SEED_BASE: u64 = 500;
+/// development (the tuning draws are seeds 0–3), run once.
+const GENERIC_HOLDOUT_SEED_BASE: u64 = 700;
 
 /// The truths a generic structure should name — sensor delay, structural
 /// resonance, torque-constant drift, a load offset held out of the library
 /// (a constant unmeasured force) — four draws each.
-/// `DIAGNOSE_GENERIC_SET=tuning|holdout` (default both).
+/// `DIAGNOSE_GENERIC_SET=tuning|seen|holdout` (default all three).
 #[test]
 #[ignore = "generic-structure benchmark (≈ 1–2 min): cargo test --release --test diagnose_open generic_structures -- --ignored --nocapture"]
 fn generic_structures() {
@@ -513,7 +516,8 @@ fn generic_structures() {
     let mut rep = String::new();
     for (key, base, title) in [
         ("tuning", 0u64, "Generic structures, tuning seeds (0–3; the classes were developed on them)"),
-        ("holdout", GENERIC_HOLDOUT_SEED_BASE, "Generic structures, held-out seeds (from 500; run once after the method was fixed)"),
+        ("seen", GENERIC_SEEN_SEED_BASE, "Generic structures, seen seeds (from 500; held out once, then studied while the classes were changed)"),
+        ("holdout", GENERIC_HOLDOUT_SEED_BASE, "Generic structures, held-out seeds (from 700; run once after the method was fixed)"),
     ] {
         if !set.is_empty() && set != key {
             continue;

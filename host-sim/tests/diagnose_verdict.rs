@@ -68,6 +68,7 @@ fn run(
         stack: &[ranking[0].effect.clone()],
         stack_weighted: lib / 2.0,
         stack_primary: lib,
+        stack_torque: lib,
         stack_train_fit,
         dist,
         structure: Some(&ts),
@@ -170,11 +171,36 @@ fn a_back_emf_off_the_rig_file_is_a_rig_mismatch_with_the_refit_figures() {
     assert!((v.explained_pct - 88.0).abs() < 1e-9);
 }
 
+/// A disturbance that acts on the torque channel with its primary figure
+/// there too (an unmeasured force loads the motor).
+fn on_torque(d: DisturbanceFit) -> DisturbanceFit {
+    DisturbanceFit {
+        channels: vec!["torque".into(), "position".into()],
+        shrink_by_channel: [("torque".to_string(), d.primary_shrink_pct)].into_iter().collect(),
+        ..d
+    }
+}
+
 fn decide_with_refit(
     ranking: &[RankEntry],
     gates: &[Gate],
     refit: &Refit,
     dist: Option<&DisturbanceFit>,
+) -> Verdict {
+    // On what the re-fit leaves, a force's steps keep their own figure.
+    let rd = dist.map(|d| DisturbanceFit {
+        over_stack_points: d.primary_shrink_pct - refit.primary_shrink_pct.max(0.0),
+        ..d.clone()
+    });
+    decide_with_refit_dist(ranking, gates, refit, dist, rd.as_ref())
+}
+
+fn decide_with_refit_dist(
+    ranking: &[RankEntry],
+    gates: &[Gate],
+    refit: &Refit,
+    dist: Option<&DisturbanceFit>,
+    refit_dist: Option<&DisturbanceFit>,
 ) -> Verdict {
     let ts = structure(10.0);
     let lib = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
@@ -185,6 +211,7 @@ fn decide_with_refit(
         stack: &[ranking[0].effect.clone()],
         stack_weighted: lib / 2.0,
         stack_primary: lib,
+        stack_torque: lib,
         stack_train_fit: FITS,
         dist,
         structure: Some(&ts),
@@ -192,7 +219,7 @@ fn decide_with_refit(
         back_emf_heldout: Some(1.0),
         implausible_after_stack: None,
         refit: Some(refit),
-        refit_dist: None,
+        refit_dist,
         generic: None,
     })
 }
@@ -207,14 +234,14 @@ fn the_stronger_of_refit_and_disturbance_leads() {
         stable: true,
         ..Default::default()
     };
-    let d = DisturbanceFit {
+    let d = on_torque(DisturbanceFit {
         base: "nominal".into(),
         primary_shrink_pct: 85.0,
         over_stack_points: 55.0,
         heldout_change_points: 12,
         side: "an external force on the rod".into(),
         ..Default::default()
-    };
+    });
     // Events no re-fit removes: the disturbance leads, with the re-fit's
     // figure beside it.
     let v = decide_with_refit(&r, &[], &refit(35.0), Some(&d));
@@ -265,12 +292,12 @@ fn implausible_fits_block_library_causes_but_not_a_disturbance() {
     let still = Some(vec!["thermal_drift".to_string(), "backlash".to_string()]);
     let v = run(&r, &g, 82.0, 10.0, FITS, None, Some(1.0), still);
     assert_eq!(v.kind, "unexplained", "{}", v.headline);
-    let d = DisturbanceFit {
+    let d = on_torque(DisturbanceFit {
         base: "stack".into(),
         primary_shrink_pct: 90.0,
         over_stack_points: 8.0,
         ..Default::default()
-    };
+    });
     // On the blocked stack's remainder, adding 8 points: the stack's work,
     // not the disturbance's.
     let v = run(&r, &g, 82.0, 10.0, FITS, Some(&d), Some(1.0), None);
@@ -307,4 +334,75 @@ fn a_current_gain_with_a_falling_back_emf_is_a_torque_constant_change() {
         "{}",
         v.headline
     );
+}
+
+#[test]
+fn a_wrong_rig_file_chopped_into_steps_is_a_rig_mismatch() {
+    // A payload error: the disturbance chops its smooth weight error into
+    // steps and removes a little more than the re-fit, but on what the
+    // re-fit leaves its steps add nothing.
+    let r = [entry("load_offset", 20.0, &[], &[])];
+    let refit = Refit {
+        changed: vec!["moving_mass_kg 8.64e1 → 1.48e2 (+71 %)".into()],
+        primary_shrink_pct: 89.4,
+        halves_primary_shrink_pct: (90.0, 87.0),
+        stable: true,
+        ..Default::default()
+    };
+    let d = on_torque(DisturbanceFit {
+        base: "nominal".into(),
+        primary_shrink_pct: 93.6,
+        over_stack_points: 73.6,
+        heldout_change_points: 34,
+        ..Default::default()
+    });
+    let chopped = DisturbanceFit {
+        over_stack_points: 3.0,
+        ..d.clone()
+    };
+    let v = decide_with_refit_dist(&r, &[], &refit, Some(&d), Some(&chopped));
+    assert_eq!(v.kind, "rig_mismatch", "{}", v.headline);
+    // The same figures with steps that survive the re-fit: a disturbance.
+    let kept = DisturbanceFit {
+        over_stack_points: 30.0,
+        ..d.clone()
+    };
+    let v = decide_with_refit_dist(&r, &[], &refit, Some(&kept), Some(&kept));
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
+}
+
+#[test]
+fn a_small_force_leads_on_the_torque_channel_a_position_only_signal_does_not() {
+    // Nothing in the library or the re-fit; a force at a fifth of the
+    // motion's own: under the floor on the primary (position) channel, but
+    // the strongest explanation on the torque channel.
+    let r = [entry("load_offset", 2.7, &[], &[])];
+    let small = DisturbanceFit {
+        base: "nominal".into(),
+        primary_shrink_pct: 23.4,
+        over_stack_points: 20.7,
+        channels: vec!["torque".into(), "position".into()],
+        shrink_by_channel: [("torque".to_string(), 29.8), ("position".to_string(), 23.4)].into_iter().collect(),
+        ..Default::default()
+    };
+    let v = run(&r, &[], 2.7, 10.0, FITS, Some(&small), Some(1.0), None);
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
+    assert!((v.explained_pct - 23.4).abs() < 1e-9, "the share as measured: {}", v.explained_pct);
+    assert!(v.headline.contains("torque channel 29.8 %"), "{}", v.headline);
+    // The same signal on the position channel alone: the scale or its
+    // mount, not a force.
+    let position_only = DisturbanceFit {
+        channels: vec!["position".into()],
+        shrink_by_channel: [("torque".to_string(), 0.0), ("position".to_string(), 23.4)].into_iter().collect(),
+        ..small.clone()
+    };
+    let v = run(&r, &[], 2.7, 10.0, FITS, Some(&position_only), Some(1.0), None);
+    assert_ne!(v.kind, "disturbance", "{}", v.headline);
+    // On the torque channel but no stronger than the stack there: nothing.
+    let weak = DisturbanceFit {
+        shrink_by_channel: [("torque".to_string(), 15.0)].into_iter().collect(),
+        ..small
+    };
+    let v = run(&r, &[], 2.7, 10.0, FITS, Some(&weak), Some(1.0), None);
+    assert_ne!(v.kind, "disturbance", "{}", v.headline);
 }

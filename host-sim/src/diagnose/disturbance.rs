@@ -17,7 +17,7 @@ use super::effects::{Effect, MAXP};
 use super::events::{self, Remainder};
 use super::figures::shrink;
 use super::fit::ChannelPred;
-use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE};
+use super::residual::{sg_smooth, Nominal, Segment, NCH, POSITION, TORQUE};
 
 /// A channel carries the disturbance only if, on the training part, the
 /// cross-validated levels shrink that channel's remainder by at least
@@ -39,6 +39,10 @@ pub const LOCK_TOL_S: f64 = 0.05;
 /// an unmeasured external force (whose events have their own clock).
 pub const LOCKED_RATIO: f64 = 2.0;
 pub const LOCKED_EXCESS_POINTS: f64 = 10.0;
+/// ... and only when chance is unlikely to give that share
+/// (`events::lock_significant`: binomial tail over the change points'
+/// effective number below this).
+pub const LOCK_ALPHA: f64 = 0.01;
 
 /// Thresholds (robust sigmas) tried on the training part.
 pub const THRESHOLDS: [f64; 6] = [4.0, 6.0, 8.0, 12.0, 16.0, 24.0];
@@ -98,6 +102,8 @@ pub struct DisturbanceFit {
     /// the nominal model's torque and compliance), chosen on training.
     pub levels: String,
     pub primary_shrink_pct: f64,
+    /// Held-out shrink of each channel's gap against the nominal, %.
+    pub shrink_by_channel: std::collections::BTreeMap<String, f64>,
     pub over_stack_points: f64,
     /// Share of the stack's remainder it explains (weighted), %.
     /// (Zero channels: the levels helped no channel on training.)
@@ -162,28 +168,6 @@ pub const DETECT_WEIGHT_FLOOR: f64 = 0.5;
 /// channel (scale − encoder) is raw.
 fn smoothed(c: usize) -> bool {
     c == TORQUE
-}
-
-/// Quadratic Savitzky–Golay smoothing (value) over ±m samples, the filter
-/// the torque channel's current goes through; the ends are left as they are.
-fn sg_smooth(y: &[f64], m: usize) -> Vec<f64> {
-    let n = y.len();
-    if m == 0 || n < 2 * m + 1 {
-        return y.to_vec();
-    }
-    let mf = m as f64;
-    let s2 = mf * (mf + 1.0) / 3.0;
-    let sq: f64 = (0..=2 * m)
-        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
-        .sum();
-    let coef: Vec<f64> = (0..=2 * m)
-        .map(|j| 1.0 / (2.0 * mf + 1.0) - ((j as f64 - mf).powi(2) - s2) * s2 / sq)
-        .collect();
-    let mut out = y.to_vec();
-    for (i, o) in out.iter_mut().enumerate().take(n - m).skip(m) {
-        *o = coef.iter().zip(&y[i - m..=i + m]).map(|(a, b)| a * b).sum();
-    }
-    out
 }
 
 /// Per-sample gain of the levels on channel `c` (1 per channel, or the
@@ -484,12 +468,13 @@ pub fn fit(
     let wp = one(primary);
     let gp = gap(held, rem_held, Some(&pred), &wp);
     let gp_stack = gap(held, rem_held, None, &wp);
-    // The levels are reported on the channel the figures are read on: the
-    // primary channel if the disturbance acts there, else the first
-    // channel it acts on (a force: N at the nut on every channel).
+    // The levels are reported where a force is measured: the torque
+    // channel (the motor supplies the force; N at the nut with the rig's
+    // physics, the logged current with a regression nominal) when the
+    // disturbance acts there, else the first channel it acts on.
     let used: Vec<usize> = (0..NCH).filter(|c| use_ch[*c]).collect();
-    let level_ch = if used.contains(&primary) {
-        Some(primary)
+    let level_ch = if used.contains(&TORQUE) {
+        Some(TORQUE)
     } else {
         used.first().copied()
     };
@@ -533,7 +518,9 @@ pub fn fit(
         base: String::new(),
         signal_locked_pct: lk,
         chance_pct: ch,
-        locked_to_signals: lk >= LOCKED_RATIO * ch && lk - ch >= LOCKED_EXCESS_POINTS,
+        locked_to_signals: lk >= LOCKED_RATIO * ch
+            && lk - ch >= LOCKED_EXCESS_POINTS
+            && events::lock_significant(&steps, lk, ch, LOCK_ALPHA),
         train_gap_after: train_gap,
         threshold_sigma: k,
         train_cv_shrink_pct: shrink(base_t, train_gap),
@@ -574,6 +561,16 @@ pub fn fit(
             shrink(gap_nominal_h, gap(held, rem_held, None, &w_other) * frac.sqrt())
         },
         primary_shrink_pct: shrink(gap_nominal_primary_h, gp),
+        shrink_by_channel: (0..NCH)
+            .filter(|c| held.iter().any(|s| s.r[*c].is_some()))
+            .map(|c| {
+                let wc = one(c);
+                (
+                    super::residual::CHANNELS[c].to_string(),
+                    shrink(super::fit::gap(held, None, &wc), gap(held, rem_held, Some(&pred), &wc)),
+                )
+            })
+            .collect(),
         over_stack_points: shrink(gap_nominal_primary_h, gp) - shrink(gap_nominal_primary_h, gp_stack),
         channels: (0..NCH).filter(|c| use_ch[*c]).map(|c| super::residual::CHANNELS[c].to_string()).collect(),
         remainder_explained_pct: shrink(g_stack, g),

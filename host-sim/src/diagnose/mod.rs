@@ -321,7 +321,7 @@ pub fn diagnose_with(
     );
     let use_nominal = stack.is_some() && on_nominal.0.train_gap_after < on_stack.0.train_gap_after;
     let (mut dist, dist_pred, cps) = if use_nominal { on_nominal } else { on_stack };
-    dist.base = if use_nominal {
+    dist.base = if use_nominal || stack.is_none() {
         "nominal".into()
     } else {
         "stack".into()
@@ -480,6 +480,13 @@ pub fn diagnose_with(
         stack: &stack_names,
         stack_weighted,
         stack_primary: stack_primary_shrink.max(0.0),
+        stack_torque: if stack.is_some() && avail.contains(&residual::TORQUE) {
+            let mut wt = [0.0; NCH];
+            wt[residual::TORQUE] = 1.0;
+            shrink(fit::gap(&held, None, &wt), fit::gap(&held, Some(&pred_h), &wt)).max(0.0)
+        } else {
+            0.0
+        },
         stack_train_fit,
         dist: Some(&dist),
         structure: time_structure

@@ -146,6 +146,54 @@ fn solve_channel(segs: &[&Segment], nominal: &Nominal, c: usize, fixed: &[f64]) 
     fixed.iter().copied().chain((dm * beta).iter().copied()).collect()
 }
 
+/// Weighted least squares of the torque channel's residual, the nominal
+/// torque's coefficient held at `ct`, on `extra(s, i)` plus drag and
+/// viscous friction; returns the weighted RMS it leaves and the first
+/// extra coefficient.
+fn torque_alternative(
+    segs: &[&Segment],
+    p: &super::residual::Physics,
+    ct: f64,
+    extra: &dyn Fn(&Segment, usize) -> f64,
+) -> (f64, f64) {
+    let feats = |s: &Segment, i: usize| [extra(s, i), p.sgn(s.omega[i]), s.omega[i]];
+    let nominal_torque = |s: &Segment, i: usize| match (&s.y[TORQUE], &s.r[TORQUE]) {
+        (Some(y), Some(r)) => y[i] - r[i],
+        _ => 0.0,
+    };
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for s in segs {
+        let Some(r) = &s.r[TORQUE] else { continue };
+        for (i, ri) in r.iter().enumerate() {
+            let w2 = s.weight(TORQUE, i).powi(2);
+            let f = feats(s, i);
+            let y = ri - ct * nominal_torque(s, i);
+            for a in 0..3 {
+                atb[a] += w2 * f[a] * y;
+                for b in 0..3 {
+                    ata[(a, b)] += w2 * f[a] * f[b];
+                }
+            }
+        }
+    }
+    let beta = ata
+        .svd(true, true)
+        .solve(&atb, 1e-12)
+        .unwrap_or_else(|_| nalgebra::Vector3::zeros());
+    let (mut ss, mut n) = (0.0, 0.0);
+    for s in segs {
+        let Some(r) = &s.r[TORQUE] else { continue };
+        for (i, ri) in r.iter().enumerate() {
+            let f = feats(s, i);
+            let e = ri - ct * nominal_torque(s, i) - (0..3).map(|a| beta[a] * f[a]).sum::<f64>();
+            ss += (s.weight(TORQUE, i) * e).powi(2);
+            n += 1.0;
+        }
+    }
+    ((ss / f64::max(n, 1.0)).sqrt(), beta[0])
+}
+
 /// The re-fit on `segs`. With the rig's physics and a logged voltage, the
 /// torque constant is not fitted on the torque channel but follows the
 /// flux the back-EMF gives (`K_t = 1.5 p ψ_f`): fitted on the torque alone
@@ -304,10 +352,36 @@ fn describe(out: &mut Refit, coef: &[Vec<f64>; NCH], train: &[&Segment], held: &
             // A payload error on a tilted axis changes the weight with the
             // inertia: the constant force is the mass change's weight.
             let (m_file, m_log) = out.params.get("moving_mass_kg").copied().unwrap_or((0.0, 0.0));
-            let weight = (m_log - m_file) * p.gravity * p.tilt_deg.to_radians().sin();
-            out.payload_consistent = changed.iter().any(|c| c.starts_with("moving_mass_kg"))
+            let g_axial = p.gravity * p.tilt_deg.to_radians().sin();
+            let weight = (m_log - m_file) * g_axial;
+            let agrees = changed.iter().any(|c| c.starts_with("moving_mass_kg"))
                 && weight.abs() > 0.0
                 && (const_force - weight).abs() <= PAYLOAD_WEIGHT_AGREEMENT * weight.abs();
+            // The inertia of a small mass change is a weak signal next to
+            // its weight, so the free mass can miss while the constant
+            // force is right. Two one-parameter explanations of the same
+            // complexity then decide on training: a payload (one mass
+            // change that is both weight and inertia, `k (a + g sin tilt)`)
+            // or a constant force (`k`). The payload is what the rig file
+            // got wrong when it fits better and its mass change is beyond
+            // tolerance.
+            let ct = coef[TORQUE].first().copied().unwrap_or(0.0);
+            let s1 = 1.0 + ct;
+            let (gap_payload, dm) = torque_alternative(train, p, ct, &|s, i| p.k * (s.a[i] + g_axial));
+            let (gap_force, _) = torque_alternative(train, p, ct, &|_, _| p.k);
+            let dm = dm / s1;
+            // The inertia must say so too: the free mass changed beyond
+            // tolerance the same way (a constant force leaves it alone; a
+            // floor that follows the acceleration would favour the payload
+            // model by itself).
+            let mass_moved_same_way = changed.iter().any(|c| c.starts_with("moving_mass_kg"))
+                && (m_log - m_file) * dm > 0.0;
+            let payload_better = g_axial.abs() > 0.0
+                && gap_payload < gap_force
+                && dm.abs() > TIGHT_TOLERANCE * p.m_moving
+                && mass_moved_same_way;
+            out.params.insert("payload_mass_change_kg".into(), (0.0, dm));
+            out.payload_consistent = agrees || payload_better;
             out.rig_specific = out.payload_consistent
                 || changed.iter().any(|c| {
                     c.starts_with("torque_constant") || c.starts_with("flux_linkage") || c.starts_with("compliance_ratio")

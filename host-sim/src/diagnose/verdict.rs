@@ -13,7 +13,7 @@ use super::refit::Refit;
 use super::events::TimeStructure;
 use super::figures::{PRIMARY, REMAINING, WEIGHTED, WEIGHTED_ACTING};
 use super::gates::Gate;
-use super::residual::NCH;
+use super::residual::{CHANNELS, NCH, TORQUE};
 use super::summary::RankEntry;
 
 mod baseline;
@@ -64,6 +64,8 @@ pub struct Inputs<'a> {
     pub stack: &'a [String],
     pub stack_weighted: f64,
     pub stack_primary: f64,
+    /// The stack's held-out shrink of the torque channel's gap, %.
+    pub stack_torque: f64,
     /// Training Fit % per channel once the stack is subtracted: whether
     /// the stack accounts for a `nominal_poor_fit`.
     pub stack_train_fit: [Option<f64>; NCH],
@@ -247,7 +249,32 @@ pub fn decide(i: &Inputs) -> Verdict {
     // inadequate) plus levels of zero is not "explained by a disturbance".
     // It must then add its own `DISTURBANCE_OVER_STACK_POINTS`.
     let dist_own = dist.is_some_and(|d| d.base == "nominal" || dist_better);
-    let dist_ok = dist_total >= MOST_OF_GAP_PCT && dist_own && (lib < MOST_OF_GAP_PCT || dist_better);
+    // An unmeasured axial force (or input disturbance) loads the motor: it
+    // must act on the torque channel (the logged current) and help it on
+    // the held-out part. A piecewise-constant signal on the position
+    // channel alone is the scale or its mount, not a force.
+    let torque_of = |m: &std::collections::BTreeMap<String, f64>| m.get(CHANNELS[TORQUE]).copied().unwrap_or(0.0).max(0.0);
+    let dist_torque = dist.map_or(0.0, |d| torque_of(&d.shrink_by_channel));
+    let on_torque = dist.is_some_and(|d| d.channels.iter().any(|c| c == CHANNELS[TORQUE]))
+        && dist_torque >= super::disturbance::CHANNEL_MIN_PCT;
+    // A wrong rig file leaves a smooth residual the disturbance can chop
+    // into steps; its steps are not needed once the rig's own parameters
+    // are re-fitted when, on what the re-fit leaves, they add under
+    // `DISTURBANCE_OVER_STACK_POINTS`.
+    let refit_valid_for_dist = i.refit.is_some_and(|r| r.stable && !r.changed.is_empty() && !r.only_constant_force);
+    let survives_refit = !refit_valid_for_dist
+        || i.refit_dist.is_some_and(|d| !d.locked_to_signals && d.over_stack_points >= DISTURBANCE_OVER_STACK_POINTS);
+    // Most of the gap (with its floor), or — a force small against the
+    // nominal's floor — the strongest explanation where a force is
+    // measured: on the torque channel it removes
+    // `DISTURBANCE_OVER_STACK_POINTS` more than the library stack and the
+    // re-fit of the rig's parameters.
+    let refit_torque = i.refit.map_or(0.0, |r| torque_of(&r.shrink_by_channel));
+    let strongest_on_torque = dist_torque >= i.stack_torque.max(refit_torque) + DISTURBANCE_OVER_STACK_POINTS;
+    let dist_ok = on_torque
+        && survives_refit
+        && ((dist_own && dist_total >= MOST_OF_GAP_PCT && (lib < MOST_OF_GAP_PCT || dist_better))
+            || (strongest_on_torque && lib < MOST_OF_GAP_PCT));
     // The re-fit of the nominal's own parameters: a rig mismatch when it is
     // stable over the training halves and a rig parameter is beyond its
     // tolerance. A re-fit that only adds a constant force is an unmeasured
@@ -378,15 +405,26 @@ pub fn decide(i: &Inputs) -> Verdict {
         );
         return v;
     }
-    if !lib_leads && (dist_ok || rd_ok || const_force >= MOST_OF_GAP_PCT) && other_best >= MOST_OF_GAP_PCT {
+    if !lib_leads && (dist_ok || ((rd_ok || const_force >= MOST_OF_GAP_PCT) && other_best >= MOST_OF_GAP_PCT)) {
         v.kind = "disturbance".into();
-        if dist_ok && dist_total >= const_force && !(rd_ok && rd.map_or(0.0, |x| x.0) > dist_total) {
+        // A constant force is a disturbance without a time course: the
+        // simpler answer unless the time course adds its own points.
+        let const_leads = const_force >= MOST_OF_GAP_PCT && dist_total < const_force + DISTURBANCE_OVER_STACK_POINTS;
+        if dist_ok && !const_leads && !(rd_ok && rd.map_or(0.0, |x| x.0) > dist_total) {
             let d = dist.expect("dist_ok");
             v.explained_pct = dist_total;
             v.explained_by = "library stack + disturbance".into();
             v.remaining_gap_pct = 100.0 - dist_total;
+            let floor_note = if dist_total < MOST_OF_GAP_PCT {
+                format!(
+                    " It is small against the nominal's own floor: on the torque channel, where a force is measured, it removes {dist_torque:.1} % of the held-out gap, {:.0} points more than the library stack or a re-fit of the rig's parameters.",
+                    dist_torque - i.stack_torque.max(refit_torque)
+                )
+            } else {
+                String::new()
+            };
             v.headline = format!(
-                "{lead}The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect or a wrong rig file: {} ({} points over the library stack); {REMAINING} {:.1} %. For comparison, {refit_txt}. Library effects alone: {share_txt}.",
+                "{lead}The held-out gap is explained by an unmeasured disturbance with a time course, not by a library effect or a wrong rig file: {} ({} points over the library stack; torque channel {dist_torque:.1} %); {REMAINING} {:.1} %.{floor_note} For comparison, {refit_txt}. Library effects alone: {share_txt}.",
                 dist_txt(d, dist_total),
                 d.over_stack_points.round(),
                 v.remaining_gap_pct

@@ -50,6 +50,33 @@ pub fn locked_share(
     (pct(near, n), pct(covered as f64, total as f64))
 }
 
+/// Whether a locked share is more than chance can give: the change
+/// points' effective number `n = (Σw)²/Σw²` (a few large steps count as
+/// few, however many small ones sit beside them), of which `locked_pct`
+/// lie near a logged event where chance puts `chance_pct`; the binomial
+/// tail P(X ≥ k | n, p) must fall under `alpha`. Two edges of one long
+/// force step, one of which lands near a move by chance, prove nothing.
+pub fn lock_significant(cps: &[Vec<(usize, f64)>], locked_pct: f64, chance_pct: f64, alpha: f64) -> bool {
+    let (s1, s2) = cps
+        .iter()
+        .flatten()
+        .fold((0.0, 0.0), |(a, b), (_, w)| (a + w, b + w * w));
+    if s2 <= 0.0 {
+        return false;
+    }
+    let n = ((s1 * s1 / s2).round() as u64).max(1);
+    let k = ((locked_pct / 100.0) * n as f64).round() as u64;
+    let p = (chance_pct / 100.0).clamp(1e-9, 1.0 - 1e-9);
+    // P(X ≥ k), X ~ Binomial(n, p), summed in logs.
+    let ln_c = |n: u64, j: u64| -> f64 {
+        (1..=j).map(|i| ((n - j + i) as f64).ln() - (i as f64).ln()).sum()
+    };
+    let tail: f64 = (k..=n)
+        .map(|j| (ln_c(n, j) + j as f64 * p.ln() + (n - j) as f64 * (1.0 - p).ln()).exp())
+        .sum();
+    tail < alpha
+}
+
 /// Energy share (%) of channel `c` within `[e − before, e + after]` of the
 /// events, and the share of weighted time those windows cover (%).
 pub fn share_after(

@@ -58,3 +58,26 @@ pub(super) fn sg(y: &[f64], i: usize, m: usize, h: f64) -> (f64, f64, f64) {
 pub fn half_width(dt: f64) -> usize {
     ((0.010 / dt).round() as usize).clamp(2, 50)
 }
+
+/// Quadratic Savitzky–Golay smoothing (value) over ±m samples, the filter
+/// the torque channel's current goes through, for a prediction to be
+/// smoothed alike; the ends are left as they are.
+pub fn sg_smooth(y: &[f64], m: usize) -> Vec<f64> {
+    let n = y.len();
+    if m == 0 || n < 2 * m + 1 {
+        return y.to_vec();
+    }
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let coef: Vec<f64> = (0..=2 * m)
+        .map(|j| 1.0 / (2.0 * mf + 1.0) - ((j as f64 - mf).powi(2) - s2) * s2 / sq)
+        .collect();
+    let mut out = y.to_vec();
+    for (i, o) in out.iter_mut().enumerate().take(n - m).skip(m) {
+        *o = coef.iter().zip(&y[i - m..=i + m]).map(|(a, b)| a * b).sum();
+    }
+    out
+}
