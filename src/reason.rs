@@ -157,7 +157,6 @@ reasons! {
     ObserverShiftBeyondBound = "prediction beyond control.faults.observer_shift_max_m in the trained range",
     ObserverNoUpload = "no upload begun (send Begin first)",
     ObserverWordMissing = "words missing: a chunk was not received",
-    ObserverBridgeOn = "weights are written to flash only with the bridge off",
 }
 
 impl core::fmt::Display for Reason {
