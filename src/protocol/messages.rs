@@ -180,8 +180,9 @@ pub enum Reply {
     Loaded { from_flash: bool, note: Text },
     CaptureStatus(CaptureStatus),
     CaptureData { signal: u8, start: u16, values: Vec<f32, CAPTURE_CHUNK_MAX> },
-    Observer(ObserverStatus),
     Error(Error),
+    /// The running observer weights (`Request::Observer`).
+    Observer(ObserverStatus),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -334,18 +335,18 @@ pub enum Error {
     /// Capture or test request not possible now, or out of range.
     Capture { reason: Reason },
     Test { reason: Reason },
-    /// An observer weight block refused: the part, the element, why.
-    /// The running weights are unchanged.
-    ObserverBlock(BlockError),
-    /// Observer weights are not taken by this drive's store, or the store
-    /// could not give back what it wrote.
-    ObserverStore { reason: Text },
     /// The drive is busy with a request of this kind (e.g. a save running).
     Busy,
     /// Another client controls the drive: this one may only read (info,
     /// status, parameters, telemetry, capture status and data) until that
     /// one disconnects.
     ControlledByAnotherClient,
+    /// An observer weight block refused: the part, the element, why.
+    /// The running weights are unchanged.
+    ObserverBlock(BlockError),
+    /// Observer weights are not taken by this drive's store, or the store
+    /// could not give back what it wrote.
+    ObserverStore { reason: Text },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
