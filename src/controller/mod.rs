@@ -385,6 +385,12 @@ impl Controller {
     // none in `current_period`.
     #[inline(never)]
     pub fn motor_position_m(&self) -> f32 {
+        self.motor_position_m_inline()
+    }
+
+    /// [`Self::motor_position_m`] inlined, for the capture's slots.
+    #[inline(always)]
+    pub(super) fn motor_position_m_inline(&self) -> f32 {
         self.encoder.position_counts() * self.derived.metres_per_count + self.home_offset_m
     }
 
