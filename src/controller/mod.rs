@@ -523,7 +523,7 @@ impl Controller {
                 if position_tick {
                     self.brake_tick();
                 }
-                self.run_period(s, position_tick, speed_tick)
+                self.run_period_inline(s, position_tick, speed_tick)
             }
             Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
             Mode::Disabled | Mode::Fault => self.bridge_off(),
