@@ -309,6 +309,7 @@ impl Capture {
     }
 
     /// Acts on a pending trigger, before the frame of a sampled period.
+    #[cold]
     #[inline(never)]
     pub fn take_trigger(&mut self) {
         self.pending = false;
@@ -366,6 +367,7 @@ impl Capture {
 
     /// The frame count-down ran out: the pre-trigger samples are all in
     /// (armed), or the record is complete (triggered).
+    #[cold]
     #[inline(never)]
     fn frames_event(&mut self) -> bool {
         if self.state == CaptureState::Triggered {
