@@ -160,7 +160,8 @@ impl Controller {
     #[inline(never)]
     fn stream_reference(&mut self) -> TrajectorySample {
         let a_stop = self.params.faults.stop_deceleration_m_s2;
-        let mut r = self.stream.advance(self.derived.position_period_s, a_stop);
+        let lead_s = crate::motion::stream::torque_path_delay_s(&self.params);
+        let mut r = self.stream.advance(self.derived.position_period_s, a_stop, lead_s);
         if self.stream.lost_at_rest() {
             self.raise(FaultSet::STREAM_TIMEOUT);
             return r;

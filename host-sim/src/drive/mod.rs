@@ -24,7 +24,7 @@ use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, Result};
 use servo_core::controller::ApplyError;
 use servo_core::params::{record, ValidatedParams};
-use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus};
+use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use servo_core::protocol::server::{Identity, Server};
 use servo_core::protocol::{self, CaptureRequest, DriveFrame, Error, Reply, Request, RequestFrame, TelemetryFrame, TestSignal};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
@@ -71,7 +71,11 @@ pub struct DriveOptions {
 pub struct TraceRow {
     pub time_s: f64,
     pub position_reference_m: f32,
+    /// The reference plus the observer's and any external shift.
+    pub position_command_m: f32,
     pub motor_position_m: f32,
+    pub speed_reference_rad_s: f32,
+    pub current_q_a: f32,
     /// Motor speed as rod speed, m/s.
     pub speed_m_s: f32,
     pub faults: u32,
@@ -131,6 +135,9 @@ impl DriveAccess for Access<'_> {
     fn test_signal(&mut self, signal: &TestSignal) -> Result<(), servo_core::protocol::Reason> {
         on_controller::test_signal(&mut self.cl.controller, signal)
     }
+    fn observer_weights(&self) -> &'static servo_core::observer::block::Weights {
+        self.cl.controller.observer_weights()
+    }
 }
 
 /// One simulated drive: the closed loop, the protocol server and what the
@@ -156,7 +163,7 @@ impl SimDrive {
     /// Starts like a board: the saved record, if there is a usable one,
     /// replaces the image's defaults (the rig file's `[control]`).
     pub fn new(opts: DriveOptions) -> Result<Self> {
-        let store = store::FileStore { path: opts.store.clone() };
+        let mut store = store::FileStore::new(opts.store.clone());
         let rig = &opts.rig;
         let mut plant = Plant::new(rig.plant.clone(), opts.seed);
         let x0 = opts.initial_position_m;
@@ -167,9 +174,28 @@ impl SimDrive {
         let defaults = if opts.commissioned { commissioned_control(rig.control, &plant) } else { rig.control };
         let defaults = ValidatedParams::new(defaults).map_err(|e| anyhow!("control parameters: {e}"))?;
         use servo_core::protocol::{BootRecord, RecordRejection};
+        let mut boot_weights = None;
         let (mut params, boot_note, boot_record) = match store.read() {
-            Ok(Some(bytes)) => match record::decode(&bytes) {
-                Ok(p) => (*p.get(), "saved record loaded".to_string(), BootRecord::Loaded),
+            Ok(Some(bytes)) => match record::decode_record(&bytes) {
+                Ok(d) => {
+                    let mut note = "saved record loaded".to_string();
+                    match d.observer.map(|s| s.weights) {
+                        None => {}
+                        Some(Ok(_)) => match store.stored_observer() {
+                            Ok(w) => {
+                                boot_weights = w;
+                                note.push_str(" with its observer weights");
+                            }
+                            Err(e) => note.push_str(&format!("; observer weights not used ({e}): compiled weights")),
+                        },
+                        Some(Err(e)) => note.push_str(&format!(
+                            "; observer weights refused ({}: {}): compiled weights",
+                            e.part.name(),
+                            e.reason.text()
+                        )),
+                    }
+                    (*d.params.get(), note, BootRecord::Loaded)
+                }
                 Err(e) => (*defaults.get(), format!("saved record not used ({}); image defaults", e.reason()), BootRecord::of_error(&e)),
             },
             Ok(None) => (*defaults.get(), "no saved record; image defaults".to_string(), BootRecord::NoRecord),
@@ -198,6 +224,9 @@ impl SimDrive {
         cl.override_pending(servo_core::PwmCommand::OFF);
         // The board's capture store is a `static`; one per simulated drive.
         cl.controller.attach_capture_store(Box::leak(Box::new(servo_core::capture::CaptureStore::new())));
+        if let Some(w) = boot_weights {
+            cl.controller.command(Command::SetObserverWeights { weights: w }).map_err(|e| anyhow!("observer weights: {e:?}"))?;
+        }
         if opts.commissioned {
             cl.controller
                 .command(Command::SetHome { position_m: x0 as f32 })
@@ -302,7 +331,10 @@ impl SimDrive {
         let row = TraceRow {
             time_s: self.cl.time_s(),
             position_reference_m: t.position_reference_m,
+            position_command_m: t.position_command_m,
             motor_position_m: t.motor_position_m,
+            speed_reference_rad_s: t.speed_reference_rad_s,
+            current_q_a: t.current_q_a,
             speed_m_s: t.speed_rad_s * self.cl.controller.params().metres_per_rad(),
             faults: t.faults.bits(),
             mode: t.mode,
@@ -356,6 +388,12 @@ pub fn is_read_only(r: &Request) -> bool {
     use servo_core::protocol::CaptureRequest as C;
     matches!(
         r,
-        Request::Info | Request::Status | Request::ParamCount | Request::ParamGet { .. } | Request::Telemetry { .. } | Request::Capture(C::Status | C::Read { .. })
+        Request::Info
+            | Request::Status
+            | Request::ParamCount
+            | Request::ParamGet { .. }
+            | Request::Telemetry { .. }
+            | Request::Capture(C::Status | C::Read { .. })
+            | Request::Observer(servo_core::protocol::ObserverRequest::Status)
     )
 }
