@@ -398,6 +398,14 @@ fn a_small_force_leads_on_the_torque_channel_a_position_only_signal_does_not() {
     };
     let v = run(&r, &[], 2.7, 10.0, FITS, Some(&position_only), Some(1.0), None);
     assert_ne!(v.kind, "disturbance", "{}", v.headline);
+    // Locked to the logged signals (a model error following the motion):
+    // nothing, however much it removes on the torque channel.
+    let locked = DisturbanceFit {
+        locked_to_signals: true,
+        ..small.clone()
+    };
+    let v = run(&r, &[], 2.7, 10.0, FITS, Some(&locked), Some(1.0), None);
+    assert_ne!(v.kind, "disturbance", "{}", v.headline);
     // On the torque channel but no stronger than the stack there: nothing.
     let weak = DisturbanceFit {
         shrink_by_channel: [("torque".to_string(), 15.0)].into_iter().collect(),

@@ -254,7 +254,9 @@ pub fn decide(i: &Inputs) -> Verdict {
     // the held-out part. A piecewise-constant signal on the position
     // channel alone is the scale or its mount, not a force.
     let torque_of = |m: &std::collections::BTreeMap<String, f64>| m.get(CHANNELS[TORQUE]).copied().unwrap_or(0.0).max(0.0);
-    let dist_torque = dist.map_or(0.0, |d| torque_of(&d.shrink_by_channel));
+    let dist_torque = dist
+        .filter(|d| !d.locked_to_signals)
+        .map_or(0.0, |d| torque_of(&d.shrink_by_channel));
     let on_torque = dist.is_some_and(|d| d.channels.iter().any(|c| c == CHANNELS[TORQUE]))
         && dist_torque >= super::disturbance::CHANNEL_MIN_PCT;
     // A wrong rig file leaves a smooth residual the disturbance can chop
