@@ -116,8 +116,10 @@ fn a_stream_that_stops_decelerates_to_rest_then_latches_stream_timeout() {
         assert!(reversal < 1e-3, "reverse motor speed {reversal} m/s");
         assert!(travelled >= 0.0 && travelled <= stop_distance + 1e-3, "travelled {travelled} m");
         // 50 µm is met at 0.1 m/s; at the top stream speed (0.2 m/s) the
-        // friction tail of the stop leaves ≈ 65–72 µm (docs/host-tool.md).
-        let bound = if v.abs() <= 0.1 { 50e-6 } else { 80e-6 };
+        // stop's jerk swings the payload on the rod's ≈ 35 Hz mode and the
+        // motor, pulled by it, trails the reference by up to ≈ 55 µm here
+        // at 250 mm lowering (docs/host-tool.md).
+        let bound = if v.abs() <= 0.1 { 50e-6 } else { 60e-6 };
         assert!(following <= bound, "following error {following} m");
         // A late setpoint does not restart the stream.
         let late = Command::Stream { position_m: rest as f32, velocity_m_s: 0.0, force_n: None };

@@ -6,7 +6,13 @@
 //! Samples are stored as `i16` codes against a fixed full scale per signal
 //! taken from the parameters ([`full_scale`]), interleaved one frame (all
 //! signals of one sample instant) after the other in a [`CaptureStore`]
-//! the controller writes through a `&'static`. The store is separate from
+//! the controller writes through a `&'static`.
+//!
+//! The PWM interrupt's part is small on purpose: a sample reads each
+//! slot's value, encodes it with the slot's scale and bias (one
+//! multiply-add and a saturating conversion) and writes the frame with one
+//! bounds check. The rest (the trigger, the pre-trigger count, the end)
+//! runs only when a trigger is pending or a count-down of frames runs out. The store is separate from
 //! the controller so that the controller stays small enough to build and
 //! hand over on the stack, and so thread mode can read a done capture
 //! straight from the store (the interrupt writes nothing once a capture is
@@ -29,7 +35,7 @@ pub use store::{CaptureStore, CAPTURE_STORE_CELLS};
 /// as −full scale · 32768/32767.
 pub const NAN_CODE: i16 = i16::MIN;
 
-use core::sync::atomic::{AtomicI16, Ordering};
+use core::sync::atomic::{AtomicU16, Ordering};
 
 use crate::params::ControlParams;
 use crate::reason::Reason;
@@ -91,25 +97,35 @@ pub struct CaptureLayout {
 /// The capture's state, kept in the controller.
 #[derive(Debug)]
 pub struct Capture {
+    /// The ring: the store's first samples × signals cells (empty until
+    /// configured). Its length is the ring's end, so the frame's wrap
+    /// check and bounds check compare the same two numbers.
+    ring: &'static [AtomicU16],
     store: Option<&'static CaptureStore>,
+    // The counters the PWM interrupt touches are words: halfwords cost a
+    // zero-extension or a shift at each test.
     /// PWM periods to the next sample; 0 while not recording.
-    countdown: u16,
+    countdown: u32,
     decimation: u16,
-    state: CaptureState,
-    trigger: CaptureTrigger,
+    /// Cell of the next frame's first signal (a halfword: then the
+    /// frame's end cannot overflow, and that test drops out).
+    write_cell: u16,
+    /// Frames to the next change of the bookkeeping: the pre-trigger
+    /// samples all in the ring (armed), the end (triggered).
+    frames_to_event: u32,
+    count: u8,
     /// A trigger event seen; acted on at the next sample.
     pending: bool,
-    count: u8,
+    state: CaptureState,
+    trigger: CaptureTrigger,
+    /// Armed with all its pre-trigger samples in the ring.
+    pre_filled: bool,
     signal: [Signal; CAPTURE_SIGNALS_MAX],
     /// Codes per unit, and the code of 0 plus `ENCODE_OFFSET`.
     scale: [f32; CAPTURE_SIGNALS_MAX],
     bias: [f32; CAPTURE_SIGNALS_MAX],
     samples: u16,
     pre_trigger: u16,
-    /// Frames written since arming, up to `samples`.
-    filled: u16,
-    write_frame: u16,
-    post_left: u16,
     trigger_index: u16,
     first_frame: u16,
     length: u16,
@@ -119,21 +135,22 @@ pub struct Capture {
 impl Capture {
     pub const fn new() -> Self {
         Self {
+            ring: &[],
             store: None,
             countdown: 0,
             decimation: 1,
+            write_cell: 0,
+            frames_to_event: 0,
+            count: 0,
+            pending: false,
             state: CaptureState::Idle,
             trigger: CaptureTrigger::Command,
-            pending: false,
-            count: 0,
+            pre_filled: false,
             signal: [Signal::CurrentQ; CAPTURE_SIGNALS_MAX],
             scale: [0.0; CAPTURE_SIGNALS_MAX],
             bias: [0.0; CAPTURE_SIGNALS_MAX],
             samples: 0,
             pre_trigger: 0,
-            filled: 0,
-            write_frame: 0,
-            post_left: 0,
             trigger_index: 0,
             first_frame: 0,
             length: 0,
@@ -167,14 +184,14 @@ impl Capture {
 
     /// Armed with its pre-trigger samples all in the ring.
     pub fn pre_trigger_filled(&self) -> bool {
-        self.filled >= self.pre_trigger
+        self.pre_filled
     }
 
     /// Checks `c` and arms the capture; nothing changes on refusal.
     pub fn configure(&mut self, c: &CaptureConfig, p: &ControlParams) -> Result<(), Reason> {
-        if self.store.is_none() {
+        let Some(store) = self.store else {
             return Err(Reason::NoCaptureStore);
-        }
+        };
         let n = c.signals.len();
         if n == 0 {
             return Err(Reason::NoSignals);
@@ -188,9 +205,9 @@ impl Capture {
         if c.samples < 2 {
             return Err(Reason::TooFewSamples);
         }
-        if usize::from(c.samples).saturating_mul(n) > CAPTURE_STORE_CELLS {
+        let Some(ring) = store.all().get(..usize::from(c.samples).saturating_mul(n)) else {
             return Err(Reason::CaptureBufferTooSmall);
-        }
+        };
         if c.pre_trigger >= c.samples {
             return Err(Reason::PreTriggerNotBelowSamples);
         }
@@ -210,22 +227,26 @@ impl Capture {
                 *sg = s;
             }
         }
+        // With no pre-trigger samples to wait for, the first event is
+        // only a refill of the count-down (see `event`).
+        let pre_filled = c.pre_trigger == 0;
         *self = Self {
+            ring,
             store: self.store,
             countdown: 1,
             decimation: c.decimation,
+            write_cell: 0,
+            frames_to_event: if pre_filled { u32::MAX } else { u32::from(c.pre_trigger) },
+            count: n as u8,
+            pending: false,
             state: CaptureState::Armed,
             trigger: c.trigger,
-            pending: false,
-            count: n as u8,
+            pre_filled,
             signal,
             scale,
             bias,
             samples: c.samples,
             pre_trigger: c.pre_trigger,
-            filled: 0,
-            write_frame: 0,
-            post_left: c.samples.saturating_sub(c.pre_trigger),
             trigger_index: 0,
             first_frame: 0,
             length: 0,
@@ -260,7 +281,7 @@ impl Capture {
         if self.countdown != 0 {
             return false;
         }
-        self.countdown = self.decimation;
+        self.countdown = u32::from(self.decimation);
         true
     }
 
@@ -269,74 +290,96 @@ impl Capture {
         self.signal.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
-    /// Starts the frame of a sampled period (acting on a pending
-    /// trigger); returns the frame's cells, one per signal, to fill with
-    /// [`Self::put`] in slot order.
+    /// Signals per frame.
     #[inline(always)]
-    pub fn begin_frame(&mut self) -> Option<&'static [AtomicI16]> {
-        if self.pending && self.state == CaptureState::Armed {
-            self.trigger();
-        }
-        let n = usize::from(self.count);
-        self.store?.cells(usize::from(self.write_frame).wrapping_mul(n), n)
+    pub fn count(&self) -> u8 {
+        self.count
     }
 
+    /// Slot `K`'s signal.
+    #[inline(always)]
+    pub fn signal<const K: usize>(&self) -> Signal {
+        self.signal.get(K).copied().unwrap_or(Signal::CurrentQ)
+    }
+
+    /// A trigger waits for the next sample.
+    #[inline(always)]
+    pub fn trigger_pending(&self) -> bool {
+        self.pending
+    }
+
+    /// Acts on a pending trigger, before the frame of a sampled period.
+    #[cold]
     #[inline(never)]
-    fn trigger(&mut self) {
+    pub fn take_trigger(&mut self) {
         self.pending = false;
-        self.state = CaptureState::Triggered;
-        self.trigger_index = if self.filled < self.pre_trigger { self.filled } else { self.pre_trigger };
-        // write_frame < samples and trigger_index ≤ pre_trigger < samples.
-        self.first_frame = if self.write_frame >= self.trigger_index {
-            self.write_frame.wrapping_sub(self.trigger_index)
-        } else {
-            self.write_frame.wrapping_add(self.samples).wrapping_sub(self.trigger_index)
-        };
-        self.length = self.trigger_index.wrapping_add(self.post_left);
-    }
-
-    /// The slots' signals, codes per unit and code offsets, for `put`.
-    #[inline(always)]
-    pub fn slots(&self) -> impl Iterator<Item = (Signal, f32, f32)> + '_ {
-        self.signal.iter().zip(&self.scale).zip(&self.bias).map(|((&s, &sc), &b)| (s, sc, b))
-    }
-
-    /// Stores `v` in `cell` with its slot's `scale` and `bias`.
-    #[inline(always)]
-    pub fn put(cell: &AtomicI16, v: f32, scale: f32, bias: f32) {
-        cell.store(encode(v, scale, bias), Ordering::Relaxed);
-    }
-
-    /// Ends the present frame; false once the capture is done.
-    #[inline(always)]
-    pub fn end_frame(&mut self) -> bool {
-        self.write_frame = self.write_frame.wrapping_add(1);
-        if self.write_frame >= self.samples {
-            self.write_frame = 0;
+        if self.state != CaptureState::Armed {
+            return;
         }
-        if self.state == CaptureState::Armed {
-            if self.filled < self.samples {
-                self.filled = self.filled.wrapping_add(1);
-            }
+        self.state = CaptureState::Triggered;
+        // Armed, `frames_to_event` counts down to the pre-trigger
+        // samples all in: fewer than `pre_trigger` written until then.
+        let filled = if self.pre_filled { self.pre_trigger } else { self.pre_trigger.wrapping_sub(self.frames_to_event as u16) };
+        self.trigger_index = filled;
+        // The next frame is the trigger sample: write_cell / signals, and
+        // trigger_index ≤ pre_trigger < samples.
+        let write_frame = self.write_cell.checked_div(u16::from(self.count)).unwrap_or(0);
+        self.first_frame = if write_frame >= filled {
+            write_frame.wrapping_sub(filled)
         } else {
-            self.post_left = self.post_left.saturating_sub(1);
-            if self.post_left == 0 {
-                self.state = CaptureState::Done;
-                self.countdown = 0;
-                return false;
-            }
+            write_frame.wrapping_add(self.samples).wrapping_sub(filled)
+        };
+        let post = self.samples.wrapping_sub(self.pre_trigger);
+        self.length = filled.wrapping_add(post);
+        // From the trigger sample on, `post` frames to the end.
+        self.frames_to_event = u32::from(post);
+    }
+
+    /// The cells of the next frame, `N` (the configured count) of them,
+    /// and the ring moved on past them: the frame's one wrap check, and
+    /// one bounds check (on the same compare; it never fails, the ring
+    /// being whole frames).
+    #[inline(always)]
+    pub fn frame<const N: usize>(&mut self) -> Option<&'static [AtomicU16]> {
+        let at = usize::from(self.write_cell);
+        let next = at.wrapping_add(N);
+        self.write_cell = if next >= self.ring.len() { 0 } else { next as u16 };
+        self.ring.get(at..next)
+    }
+
+    /// Stores `v` as slot `K`'s code in `frame`.
+    #[inline(always)]
+    pub fn put<const K: usize>(&self, frame: &[AtomicU16], v: f32) {
+        if let (Some(cell), Some(&scale), Some(&bias)) = (frame.get(K), self.scale.get(K), self.bias.get(K)) {
+            cell.store(encode(v, scale, bias), Ordering::Relaxed);
+        }
+    }
+
+    /// Ends a frame; false once the capture is done.
+    #[inline(always)]
+    pub fn advance(&mut self) -> bool {
+        self.frames_to_event = self.frames_to_event.wrapping_sub(1);
+        if self.frames_to_event == 0 {
+            return self.frames_event();
         }
         true
     }
 
-    /// Stores one frame (`values` in slot order).
-    pub fn record(&mut self, values: &[f32; CAPTURE_SIGNALS_MAX]) {
-        if let Some(cells) = self.begin_frame() {
-            for (cell, (&v, (_, sc, b))) in cells.iter().zip(values.iter().zip(self.slots())) {
-                Self::put(cell, v, sc, b);
-            }
+    /// The frame count-down ran out: the pre-trigger samples are all in
+    /// (armed), or the record is complete (triggered).
+    #[cold]
+    #[inline(never)]
+    fn frames_event(&mut self) -> bool {
+        if self.state == CaptureState::Triggered {
+            self.state = CaptureState::Done;
+            self.countdown = 0;
+            return false;
         }
-        self.end_frame();
+        // Armed: the pre-trigger part of the ring is full; nothing more to
+        // count until the trigger (a refill every 2³² − 1 frames).
+        self.pre_filled = true;
+        self.frames_to_event = u32::MAX;
+        true
     }
 
     pub fn status(&self) -> CaptureStatus {
@@ -396,13 +439,13 @@ impl Default for Capture {
 /// truncation is the rounded code + 32768.
 const ENCODE_OFFSET: f32 = 32_768.5;
 
-/// `round(v·scale + bias)` (halves up), saturated to [−32768, 32767]; NaN
-/// gives −32768 ([`NAN_CODE`]). One multiply-add, the FPU's saturating
-/// conversion (`vcvt.u32.f32`: NaN and negatives to 0) and a saturation to
-/// 16 bits: the biased value is positive, so truncation is the floor.
+/// `round(v·scale + bias)` (halves up), saturated to [−32768, 32767], as
+/// the store keeps it: + 32768, in a `u16` ([`CaptureStore`]). NaN gives
+/// −32768 ([`NAN_CODE`]). One multiply-add, the FPU's saturating
+/// conversion (`vcvt.s32.f32`: NaN to 0) and one `usat` to [0, 65535]:
+/// where the biased value is positive, truncation is the floor.
 #[inline(always)]
-fn encode(v: f32, scale: f32, bias: f32) -> i16 {
+fn encode(v: f32, scale: f32, bias: f32) -> u16 {
     // `bias` includes ENCODE_OFFSET (set at configure).
-    let u = (v * scale + bias) as u32;
-    (u.min(65_535) as i32).wrapping_sub(32_768) as i16
+    ((v * scale + bias) as i32).clamp(0, 65_535) as u16
 }

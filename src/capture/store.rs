@@ -1,30 +1,29 @@
-//! Where the samples live: a static array of `i16` cells, written by the
+//! Where the samples live: a static array of 16-bit cells, written by the
 //! PWM interrupt through a shared reference and read by anyone once a
-//! capture is done.
+//! capture is done. A cell holds the `i16` code + 32768 (offset binary):
+//! that is what the interrupt's saturating conversion yields, so it stores
+//! it as it is, and a reader takes the 32768 off.
 //!
-//! The cells are `AtomicI16`: on the Cortex-M4 a relaxed store or load is a
-//! plain `strh`/`ldrsh`, so they cost nothing over a plain array, and the
+//! The cells are `AtomicU16`: on the Cortex-M4 a relaxed store or load is a
+//! plain `strh`/`ldrh`, so they cost nothing over a plain array, and the
 //! store can be a `static` that both the interrupt (through the controller)
 //! and thread mode hold a `&'static` to, without `unsafe`. The interrupt
 //! stops writing once a capture is done (until the next configure), so a
 //! reader with a [`CaptureLayout`] of a done capture sees finished values.
 
-use core::sync::atomic::{AtomicI16, Ordering};
+use core::sync::atomic::{AtomicU16, Ordering};
 
 use super::CaptureLayout;
 use crate::reason::Reason;
 
-
 /// Cells in the store: 4 signals × 1024 samples, 2 × 2048 or 1 × 4096.
 pub const CAPTURE_STORE_CELLS: usize = 4096;
-
-
 
 /// 8 KiB of samples. `const`-constructible: `static CAPTURE: CaptureStore =
 /// CaptureStore::new();` puts it in `.bss`.
 #[derive(Debug)]
 pub struct CaptureStore {
-    cells: [AtomicI16; CAPTURE_STORE_CELLS],
+    cells: [AtomicU16; CAPTURE_STORE_CELLS],
 }
 
 impl Default for CaptureStore {
@@ -35,18 +34,18 @@ impl Default for CaptureStore {
 
 impl CaptureStore {
     pub const fn new() -> Self {
-        Self { cells: [const { AtomicI16::new(0) }; CAPTURE_STORE_CELLS] }
+        Self { cells: [const { AtomicU16::new(0) }; CAPTURE_STORE_CELLS] }
     }
 
-    /// The `n` cells from `start`, if inside the store.
-    #[inline(always)]
-    pub(crate) fn cells(&self, start: usize, n: usize) -> Option<&[AtomicI16]> {
-        self.cells.get(start..start.wrapping_add(n))
+    /// Every cell, for the capture to write frames into.
+    pub(crate) fn all(&self) -> &[AtomicU16] {
+        &self.cells
     }
 
+    /// The code in cell `index` (0 outside the store).
     #[inline(always)]
     fn get(&self, index: usize) -> i16 {
-        self.cells.get(index).map_or(0, |c| c.load(Ordering::Relaxed))
+        self.cells.get(index).map_or(0, |c| (c.load(Ordering::Relaxed) ^ 0x8000) as i16)
     }
 
     /// Values of `signal` (its slot in the configuration) from record sample

@@ -39,7 +39,15 @@ impl Controller {
         }
     }
 
+    /// [`Self::run_period_inline`] for the braking and preload periods.
     pub(super) fn run_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
+        self.run_period_inline(s, position_tick, speed_tick)
+    }
+
+    /// The cascade's period: inlined into `step`'s driving case, where the
+    /// call, its frame and its return cost eight instructions a period.
+    #[inline(always)]
+    pub(super) fn run_period_inline(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
         if position_tick {
             self.position_period(s);
         }
@@ -152,7 +160,8 @@ impl Controller {
     #[inline(never)]
     fn stream_reference(&mut self) -> TrajectorySample {
         let a_stop = self.params.faults.stop_deceleration_m_s2;
-        let mut r = self.stream.advance(self.derived.position_period_s, a_stop);
+        let lead_s = crate::motion::stream::torque_path_delay_s(&self.params);
+        let mut r = self.stream.advance(self.derived.position_period_s, a_stop, lead_s);
         if self.stream.lost_at_rest() {
             self.raise(FaultSet::STREAM_TIMEOUT);
             return r;

@@ -385,6 +385,12 @@ impl Controller {
     // none in `current_period`.
     #[inline(never)]
     pub fn motor_position_m(&self) -> f32 {
+        self.motor_position_m_inline()
+    }
+
+    /// [`Self::motor_position_m`] inlined, for the capture's slots.
+    #[inline(always)]
+    pub(super) fn motor_position_m_inline(&self) -> f32 {
         self.encoder.position_counts() * self.derived.metres_per_count + self.home_offset_m
     }
 
@@ -517,7 +523,7 @@ impl Controller {
                 if position_tick {
                     self.brake_tick();
                 }
-                self.run_period(s, position_tick, speed_tick)
+                self.run_period_inline(s, position_tick, speed_tick)
             }
             Mode::Fault if self.short_circuit_periods > 0 => self.short_circuit(s),
             Mode::Disabled | Mode::Fault => self.bridge_off(),

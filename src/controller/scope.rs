@@ -7,7 +7,7 @@
 //! offsets at their own rates (speed, position), never per PWM period.
 
 use super::{Controller, HOOK_CAPTURE, HOOK_TEST};
-use crate::capture::{Capture, CaptureLayout, CaptureStore};
+use crate::capture::{CaptureLayout, CaptureStore};
 use crate::foc::Dq;
 use crate::io::SensorSample;
 use crate::lifecycle::Readiness;
@@ -260,29 +260,59 @@ impl Controller {
         if self.capture.tick() {
             self.capture_frame(s);
         }
-        if self.test.active() {
-            self.test_tick();
-            self.refresh_hooks();
+        if self.hooks & HOOK_TEST != 0 {
+            self.test_period();
         }
     }
 
-    /// One frame of the capture: each slot's value, encoded and stored.
+    /// One frame of the capture: a pending trigger first, then each slot's
+    /// value, encoded and stored.
     #[inline(always)]
     fn capture_frame(&mut self, s: &SensorSample) {
-        if let Some(cells) = self.capture.begin_frame() {
-            for (cell, (sig, scale, bias)) in cells.iter().zip(self.capture.slots()) {
-                Capture::put(cell, self.signal_value(sig, s), scale, bias);
-            }
+        if self.capture.trigger_pending() {
+            self.capture.take_trigger();
         }
-        if !self.capture.end_frame() {
+        // One copy of the frame per signal count: no loop, each slot's
+        // table entries at fixed places. The count is 1 to 4: `& 3` makes
+        // the four cases a jump table (4 → 0).
+        let going = match self.capture.count() & 3 {
+            0 => self.capture_write::<4>(s),
+            1 => self.capture_write::<1>(s),
+            2 => self.capture_write::<2>(s),
+            _ => self.capture_write::<3>(s),
+        };
+        if !going {
             self.refresh_hooks();
         }
     }
 
-    /// One signal's value now: a load for most, a few operations for the
-    /// derived ones. Not inlined: inlined, the compiler loads every signal
-    /// up front for each frame.
-    #[inline(never)]
+    /// Writes the frame of `N` slots (the configured count); false once
+    /// the capture is done. Slot by slot, written out: the core is built
+    /// for size, so the compiler would keep a loop here (a counter, a
+    /// compare and a branch a slot, and the values through the stack).
+    #[inline(always)]
+    fn capture_write<const N: usize>(&mut self, s: &SensorSample) -> bool {
+        if let Some(frame) = self.capture.frame::<N>() {
+            if N > 0 {
+                self.capture.put::<0>(frame, self.signal_value(self.capture.signal::<0>(), s));
+            }
+            if N > 1 {
+                self.capture.put::<1>(frame, self.signal_value(self.capture.signal::<1>(), s));
+            }
+            if N > 2 {
+                self.capture.put::<2>(frame, self.signal_value(self.capture.signal::<2>(), s));
+            }
+            if N > 3 {
+                self.capture.put::<3>(frame, self.signal_value(self.capture.signal::<3>(), s));
+            }
+        }
+        self.capture.advance()
+    }
+
+    /// One signal's value now: a load for most, a multiply or two for the
+    /// speed and the position. Inlined in each slot: a jump on the signal
+    /// and the load cost what an indirect load through a table would.
+    #[inline(always)]
     fn signal_value(&self, sig: Signal, s: &SensorSample) -> f32 {
         match sig {
             Signal::CurrentD => self.current_dq.d,
@@ -293,15 +323,23 @@ impl Controller {
             Signal::VoltageQ => self.voltage_dq.q,
             Signal::Speed => self.speed_rad_s(),
             Signal::SpeedReference => self.speed_reference_rad_s,
-            Signal::MotorPosition => self.motor_position_m(),
+            Signal::MotorPosition => self.motor_position_m_inline(),
             Signal::PositionCommand => self.position_command_m,
             Signal::PositionReference => self.position_reference_m,
             Signal::BusVoltage => s.bus_voltage_v,
-            Signal::PhaseCurrentA => s.phase_current_a.first().copied().unwrap_or(f32::NAN),
-            Signal::PhaseCurrentB => s.phase_current_a.get(1).copied().unwrap_or(f32::NAN),
-            Signal::PhaseCurrentC => s.phase_current_a.get(2).copied().unwrap_or(f32::NAN),
-            Signal::ElectricalAngle => crate::math::wrap_pi(self.rotor_state().electrical_angle_rad),
+            Signal::PhaseCurrentA => s.phase_current_a[0],
+            Signal::PhaseCurrentB => s.phase_current_a[1],
+            Signal::PhaseCurrentC => s.phase_current_a[2],
+            Signal::ElectricalAngle => self.electrical_angle_rad(),
         }
+    }
+
+    /// The test's part of a period (out of line: the capture's frame needs
+    /// few registers, the test's clock many).
+    #[inline(never)]
+    fn test_period(&mut self) {
+        self.test_tick();
+        self.refresh_hooks();
     }
 
     /// The test's clock, at the end of a period: starts a pending test when

@@ -71,7 +71,11 @@ pub struct DriveOptions {
 pub struct TraceRow {
     pub time_s: f64,
     pub position_reference_m: f32,
+    /// The reference plus the observer's and any external shift.
+    pub position_command_m: f32,
     pub motor_position_m: f32,
+    pub speed_reference_rad_s: f32,
+    pub current_q_a: f32,
     /// Motor speed as rod speed, m/s.
     pub speed_m_s: f32,
     pub faults: u32,
@@ -302,7 +306,10 @@ impl SimDrive {
         let row = TraceRow {
             time_s: self.cl.time_s(),
             position_reference_m: t.position_reference_m,
+            position_command_m: t.position_command_m,
             motor_position_m: t.motor_position_m,
+            speed_reference_rad_s: t.speed_reference_rad_s,
+            current_q_a: t.current_q_a,
             speed_m_s: t.speed_rad_s * self.cl.controller.params().metres_per_rad(),
             faults: t.faults.bits(),
             mode: t.mode,

@@ -180,6 +180,41 @@ fn cut_by_kill(rig: &RigConfig, v: f64, dir: &Path) -> Result<Vec<TraceRow>> {
     Ok(t)
 }
 
+/// The drive's trace from 50 ms before the last point to 0.3 s after it.
+fn write_trace(trace: &[TraceRow], path: &Path) -> Result<()> {
+    let last = trace.iter().rposition(|r| r.stream_point_m.is_some()).unwrap_or(0);
+    let from = last.saturating_sub(50);
+    let to = (last + 300).min(trace.len());
+    let mut w = csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
+    w.write_record([
+        "time_s",
+        "since_last_point_s",
+        "position_reference_m",
+        "position_command_m",
+        "motor_position_m",
+        "speed_m_s",
+        "speed_reference_rad_s",
+        "current_q_a",
+        "faults",
+    ])?;
+    let t0 = trace.get(last).map_or(0.0, |r| r.time_s);
+    for r in trace.get(from..to).unwrap_or(&[]) {
+        w.write_record([
+            r.time_s.to_string(),
+            (r.time_s - t0).to_string(),
+            r.position_reference_m.to_string(),
+            r.position_command_m.to_string(),
+            r.motor_position_m.to_string(),
+            r.speed_m_s.to_string(),
+            r.speed_reference_rad_s.to_string(),
+            r.current_q_a.to_string(),
+            r.faults.to_string(),
+        ])?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
 pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     std::fs::create_dir_all(out)?;
     let a_stop = f64::from(rig.control.faults.stop_deceleration_m_s2);
@@ -189,8 +224,12 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     let mut cases = Vec::new();
     for v in [0.1, v_top] {
         stream::check_rows("ramp", &ramp_rows(v, 1.2, 1e-3), &limits)?;
-        cases.push(analyse("client stops sending", v, a_stop, &cut_by_silence(rig, v)?)?);
-        cases.push(analyse("client killed", v, a_stop, &cut_by_kill(rig, v, out)?)?);
+        let silence = cut_by_silence(rig, v)?;
+        write_trace(&silence, &out.join(format!("trace_silence_{v:.3}.csv")))?;
+        cases.push(analyse("client stops sending", v, a_stop, &silence)?);
+        let killed = cut_by_kill(rig, v, out)?;
+        write_trace(&killed, &out.join(format!("trace_killed_{v:.3}.csv")))?;
+        cases.push(analyse("client killed", v, a_stop, &killed)?);
     }
     let all = |f: fn(&Case) -> bool| cases.iter().all(f);
     let summary = serde_json::json!({
