@@ -270,6 +270,13 @@ pub fn describe(e: &Error) -> String {
         Error::Stream { reason } => format!("stream: {reason}{}", stream_hint(*reason)),
         Error::Capture { reason } => format!("capture: {reason}"),
         Error::Test { reason } => format!("test: {reason}"),
+        Error::ObserverBlock(b) => format!(
+            "observer weights refused: {}{}: {}; the running weights are unchanged",
+            b.part.name(),
+            if matches!(b.part, servo_core::observer::block::Part::Bias | servo_core::observer::block::Part::OutputScale | servo_core::observer::block::Part::OutputOffset | servo_core::observer::block::Part::StructureHash) { String::new() } else { format!("[{}]", b.index) },
+            b.reason
+        ),
+        Error::ObserverStore { reason } => format!("observer weights: {reason}; the running weights are unchanged"),
         Error::Busy => "busy with a request of this kind; retry".into(),
         Error::ControlledByAnotherClient => "busy: controlled by another client; this one may only read (info, status, param get/list, watch, telemetry) until that one disconnects".into(),
     }
