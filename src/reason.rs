@@ -145,6 +145,8 @@ reasons! {
     BeyondMaxVelocity = "velocity_m_s beyond control.trajectory.max_velocity_m_s",
     StreamGap = "gap beyond control.stream.timeout_s: the stream has ended",
     StreamJump = "jump beyond control.trajectory.max_velocity_m_s since the last point",
+    VelocityDisagreesWithSteps = "velocity_m_s disagrees with the position steps over the drive's clock (averaged over control.stream.timeout_s) by more than control.stream.velocity_mismatch_max_m_s: a velocity column in other units, or points recorded at another rate than they arrive",
+    MismatchAboveHalfVelocity = "must be <= half of trajectory.max_velocity_m_s, or a stream whose velocity says rest while it moves at full speed passes",
 }
 
 impl core::fmt::Display for Reason {
