@@ -17,7 +17,7 @@
 //! fault (controlled stop); inputs outside the trained range are clamped by
 //! the forward pass and flagged.
 
-use crate::observer::{self, model, ModelKind};
+use crate::observer::{self, block::Weights, model, ModelKind};
 use crate::params::ControlParams;
 
 /// What one compensation update produced.
@@ -33,16 +33,40 @@ pub struct CompensationOutput {
     pub out_of_bounds: bool,
 }
 
-/// The compensation state: on/off and the shift last applied.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// The compensation state: on/off, the shift last applied, and the weights
+/// the observer runs (the compiled model unless a block was uploaded; a
+/// reference, so an uploaded block costs no RAM of the controller's).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Compensator {
     enabled: bool,
     shift_m: f32,
+    model: &'static Weights,
+}
+
+impl Default for Compensator {
+    fn default() -> Self {
+        Self::new(false)
+    }
 }
 
 impl Compensator {
     pub const fn new(enabled: bool) -> Self {
-        Self { enabled, shift_m: 0.0 }
+        Self { enabled, shift_m: 0.0, model: &observer::block::COMPILED }
+    }
+
+    /// The weights the observer runs from the next period on. The shift
+    /// moves to the new prediction at the rate limit.
+    pub fn set_model(&mut self, model: &'static Weights) {
+        self.model = model;
+    }
+
+    pub fn model(&self) -> &'static Weights {
+        self.model
+    }
+
+    /// Whether the observer runs the compiled weights.
+    pub fn model_is_compiled(&self) -> bool {
+        core::ptr::eq(self.model, &observer::block::COMPILED)
     }
 
     pub fn enabled(&self) -> bool {
@@ -71,7 +95,7 @@ impl Compensator {
         let c = &p.compensation;
         let mut out = CompensationOutput::default();
         let target = if self.enabled && model::META.kind == ModelKind::Error {
-            let pred = observer::evaluate(&model::MODEL, inputs);
+            let pred = observer::evaluate(self.model, inputs);
             out.input_clamped = pred.clamped;
             if !pred.valid || pred.value_m.abs() > p.faults.observer_shift_max_m {
                 out.out_of_bounds = true;

@@ -345,6 +345,18 @@ fn install_controller(store: &mut FlashStore, watchdog_reset: bool, hazards: Boa
     let (boot_params, boot_record) = load_params(store);
     let params = *boot_params.get();
     let mut controller = Controller::from_validated(boot_params);
+    // Observer weights uploaded and stored with that record run in place
+    // from flash; otherwise the compiled ones.
+    if boot_record == BootRecord::Loaded {
+        match store.stored_observer() {
+            Ok(Some(w)) if controller.command(servo_core::Command::SetObserverWeights { weights: w }).is_ok() => {
+                board::drive::note_observer(w);
+                info!("observer: uploaded weights from flash");
+            }
+            Ok(_) => {}
+            Err(why) => warn!("observer: compiled weights (stored block: {=str})", why.as_str()),
+        }
+    }
     // The capture store, before the controller goes to the interrupt.
     controller.attach_capture_store(&link::CAPTURE);
     if watchdog_reset {

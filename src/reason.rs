@@ -145,6 +145,20 @@ reasons! {
     BeyondMaxVelocity = "velocity_m_s beyond control.trajectory.max_velocity_m_s",
     StreamGap = "gap beyond control.stream.timeout_s: the stream has ended",
     StreamJump = "jump beyond control.trajectory.max_velocity_m_s since the last point",
+
+    // ---- an observer weight block (`observer::block`) ----
+    ObserverInputCount = "input count is not this firmware's network's",
+    ObserverHiddenCount = "hidden unit count is not this firmware's network's",
+    ObserverWordCount = "word count or word range is not this firmware's block's",
+    ObserverStructureHash = "structure hash is not this firmware's network's (other inputs, order, kind or size)",
+    ObserverRangeEmpty = "input_max must be above input_min",
+    ObserverScaleMismatch = "input_scale is not 2 / (input_max - input_min): normalisation does not match the range",
+    ObserverDecayMismatch = "log2_decay is not log2(e) / (2 width^2)",
+    ObserverShiftBeyondBound = "prediction beyond control.faults.observer_shift_max_m in the trained range",
+    ObserverNoUpload = "no upload begun (send Begin first)",
+    ObserverWordMissing = "words missing: a chunk was not received",
+
+    // ---- a stream's agreement with itself (`protocol::server`) ----
     VelocityDisagreesWithSteps = "velocity_m_s disagrees with the position steps over the drive's clock (averaged over control.stream.timeout_s) by more than control.stream.velocity_mismatch_max_m_s: a velocity column in other units, or points recorded at another rate than they arrive",
     MismatchAboveHalfVelocity = "must be <= half of trajectory.max_velocity_m_s, or a stream whose velocity says rest while it moves at full speed passes",
 }

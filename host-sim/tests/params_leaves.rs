@@ -89,8 +89,8 @@ fn a_record_word_that_is_not_a_value_of_its_leaf_is_refused() {
     assert_eq!(p, ControlParams::DEFAULT, "nothing written");
     // Within a whole record (CRC recomputed): refused as not decoding.
     let mut buf = [0u8; RECORD_MAX];
-    let mut rec = record::encode(&ControlParams::DEFAULT, &mut buf).unwrap().to_vec();
-    let at = 14 + 4 * bool_leaf;
+    let mut rec = record::encode(&ControlParams::DEFAULT, None, &mut buf).unwrap().to_vec();
+    let at = 16 + 4 * bool_leaf;
     rec[at] = 7;
     let n = rec.len() - 4;
     let crc = crc32(&rec[..n]);

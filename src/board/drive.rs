@@ -8,8 +8,10 @@
 //! Board-independent: works on any [`ServoBoard`].
 
 use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicPtr, Ordering};
 
 use servo_core::controller::ApplyError;
+use servo_core::observer::block::{Weights, COMPILED};
 use servo_core::params::ValidatedParams;
 use servo_core::protocol::drive::read_chunk;
 use servo_core::protocol::{CaptureReply, CaptureRequest, DriveAccess, DriveStatus, Reason, TestSignal};
@@ -59,6 +61,16 @@ impl ParamsCache {
     }
 }
 
+/// The observer weights the controller was last told to run (null: the
+/// compiled ones). Set when the interrupt accepted the command.
+static OBSERVER: AtomicPtr<Weights> = AtomicPtr::new(core::ptr::null_mut());
+
+/// Records that the controller runs `w` (`Command::SetObserverWeights`
+/// accepted, or given at power-up).
+pub fn note_observer(w: &'static Weights) {
+    OBSERVER.store(core::ptr::from_ref(w).cast_mut(), Ordering::Relaxed);
+}
+
 /// The drive as the server sees it, for the duration of one request.
 pub struct BoardDrive<'a, B: ServoBoard> {
     board: RefCell<&'a mut B>,
@@ -97,7 +109,12 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
 
     fn command(&mut self, cmd: Command) -> Result<CommandOutcome, CommandError> {
         match self.board.get_mut().call(super::link::Request::Drive(cmd)) {
-            Ok(Reply::Drive(r)) => r,
+            Ok(Reply::Drive(r)) => {
+                if let (Ok(_), Command::SetObserverWeights { weights }) = (&r, cmd) {
+                    note_observer(weights);
+                }
+                r
+            }
             // No controller yet: it is installed once the current offsets
             // are measured.
             Ok(Reply::NoDrive) => Err(CommandError::NotCalibrated),
@@ -105,6 +122,12 @@ impl<B: ServoBoard> DriveAccess for BoardDrive<'_, B> {
             // else): the command did not act, or its outcome is unknown.
             _ => Err(CommandError::Busy),
         }
+    }
+
+    fn observer_weights(&self) -> &'static Weights {
+        let p = OBSERVER.load(Ordering::Relaxed);
+        // SAFETY: null or a `&'static Weights` stored by `note_observer`.
+        unsafe { p.cast_const().as_ref() }.unwrap_or(&COMPILED)
     }
 
     fn apply_params(&mut self, params: &ValidatedParams) -> Result<(), ApplyError> {

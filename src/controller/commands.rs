@@ -59,6 +59,10 @@ pub enum Command {
     SetPositionShift { shift_m: f32 },
     /// Switch the observer's terminal-error compensation on or off.
     SetCompensation { enabled: bool },
+    /// Run the observer with these weights (checked by
+    /// `observer::block::validate`; the compiled model by default). Any
+    /// mode: the shift follows at the compensation's rate limit.
+    SetObserverWeights { weights: &'static crate::observer::block::Weights },
 }
 
 /// A command was taken, possibly after bounding it.
@@ -280,6 +284,10 @@ impl Controller {
             }
             Command::SetCompensation { enabled } => {
                 self.compensator.set_enabled(enabled);
+                Ok(CommandOutcome::Accepted)
+            }
+            Command::SetObserverWeights { weights } => {
+                self.compensator.set_model(weights);
                 Ok(CommandOutcome::Accepted)
             }
         }

@@ -350,6 +350,11 @@ impl Controller {
         &self.params
     }
 
+    /// The weights the observer runs (compiled, or an uploaded block).
+    pub fn observer_weights(&self) -> &'static crate::observer::block::Weights {
+        self.compensator.model()
+    }
+
     pub fn mode(&self) -> Mode {
         self.mode
     }

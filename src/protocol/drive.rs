@@ -14,6 +14,7 @@ use crate::capture::{CaptureRequest, CaptureStatus};
 use crate::test_signals::TestSignal;
 use crate::reason::Reason;
 use crate::controller::{ApplyError, Command, CommandError, CommandOutcome};
+use crate::observer::block::{Staging, Weights};
 use crate::params::{ControlParams, ValidatedParams};
 use crate::telemetry::Telemetry;
 
@@ -91,6 +92,9 @@ pub trait DriveAccess {
     /// checks first that every number is finite and durations and
     /// frequencies are positive.
     fn test_signal(&mut self, signal: &TestSignal) -> Result<(), Reason>;
+
+    /// The weights the observer runs (`Controller::observer_weights`).
+    fn observer_weights(&self) -> &'static Weights;
 }
 
 /// Where the parameter record lives: flash on the board (two pages used in
@@ -104,6 +108,20 @@ pub trait ParamStore {
     /// Reads the stored record into `buf`; its length, 0 when nothing is
     /// stored. A record longer than `buf` is an error.
     fn load(&mut self, buf: &mut [u8]) -> Result<usize, Text>;
+
+    /// Where an observer block is gathered while it is uploaded (one
+    /// buffer beside the store); `None`: this store takes no weights.
+    fn observer_staging(&mut self) -> Option<&mut Staging> {
+        None
+    }
+
+    /// The observer weights of the record just saved or loaded, where the
+    /// controller may run them from for as long as that record is stored
+    /// (in place in flash on the board; a copy in the simulator). `None`:
+    /// the record holds none, or this store cannot give them.
+    fn stored_observer(&mut self) -> Result<Option<&'static Weights>, Text> {
+        Ok(None)
+    }
 }
 
 /// One chunk of a done capture as a reply: at most [`CAPTURE_CHUNK_MAX`]

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::controller::{CommandError, CommandOutcome};
 use crate::capture::{CaptureRequest, CaptureStatus};
+use crate::observer::block::{BlockError, CHUNK_WORDS};
 use crate::params::value::{Value, ValueKind};
 use crate::reason::Reason;
 use crate::test_signals::TestSignal;
@@ -87,6 +88,52 @@ pub enum Request {
     Capture(CaptureRequest),
     /// Start a test signal generated in the core (exact timing).
     Test(TestSignal),
+    /// The observer's weights: read which run, upload a block, or go back
+    /// to the compiled model.
+    Observer(ObserverRequest),
+}
+
+/// The observer weight block (`observer::block`), uploaded in chunks:
+/// `Begin`, `Write` in order from word 0, `Commit`. A refusal names the
+/// part ([`Error::ObserverBlock`]) and the running weights stay.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum ObserverRequest {
+    /// Which weights run ([`Reply::Observer`]).
+    Status,
+    /// Starts an upload (forgetting an unfinished one). Shape and
+    /// structure hash are checked here.
+    Begin { inputs: u16, hidden: u16, words: u16, structure_hash: [u8; 8] },
+    /// Words `start..start + words.len()` of the block, in order (a chunk
+    /// sent again is taken again).
+    Write { start: u16, words: Vec<f32, CHUNK_WORDS> },
+    /// Checks the whole block, stores it in flash with the present
+    /// parameters (as `Save`) and runs it. Bridge off.
+    Commit,
+    /// Back to the compiled model, stored as such with the present
+    /// parameters. Bridge off.
+    UseCompiled,
+}
+
+/// Which observer weights run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum ObserverSource {
+    /// The model compiled into the image.
+    Compiled,
+    /// A block uploaded and stored in flash.
+    Uploaded,
+}
+
+/// The running observer weights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub struct ObserverStatus {
+    pub source: ObserverSource,
+    pub inputs: u16,
+    pub hidden: u16,
+    pub words: u16,
+    pub structure_hash: [u8; 8],
+    /// CRC-32 (ISO-HDLC) of the running words, `f32` little-endian in
+    /// block order: a host compares it with its file's.
+    pub words_crc: u32,
 }
 
 /// The drive's commands, as a host names them.
@@ -134,6 +181,8 @@ pub enum Reply {
     CaptureStatus(CaptureStatus),
     CaptureData { signal: u8, start: u16, values: Vec<f32, CAPTURE_CHUNK_MAX> },
     Error(Error),
+    /// The running observer weights (`Request::Observer`).
+    Observer(ObserverStatus),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -188,6 +237,8 @@ pub enum RecordRejection {
     /// Decoded, but the set does not validate (or asks beyond the board).
     Invalid,
     TooLarge,
+    /// The observer section has another size than this firmware's block.
+    ObserverLength,
 }
 
 impl BootRecord {
@@ -204,6 +255,7 @@ impl BootRecord {
             E::Decode => (RecordRejection::Decode, u16::MAX),
             E::Invalid(p) => (RecordRejection::Invalid, p.leaf),
             E::TooLarge => (RecordRejection::TooLarge, u16::MAX),
+            E::ObserverLength => (RecordRejection::ObserverLength, u16::MAX),
         };
         Self::Rejected { why, leaf }
     }
@@ -289,6 +341,12 @@ pub enum Error {
     /// status, parameters, telemetry, capture status and data) until that
     /// one disconnects.
     ControlledByAnotherClient,
+    /// An observer weight block refused: the part, the element, why.
+    /// The running weights are unchanged.
+    ObserverBlock(BlockError),
+    /// Observer weights are not taken by this drive's store, or the store
+    /// could not give back what it wrote.
+    ObserverStore { reason: Text },
     /// A stream point whose figures disagree with the stream so far
     /// (`VelocityDisagreesWithSteps`): what was measured, the bound it
     /// passed (both m/s) and the interval since the previous point on the

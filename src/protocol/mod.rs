@@ -6,6 +6,7 @@
 //! - `can`: the six legs' setpoint stream over CAN FD (fixed layout);
 //! - `frame`: postcard + CRC-32 + COBS framing, and the byte-stream reader;
 //! - `params`: parameters by dotted path (`control.speed_pi.kp`);
+//! - `observer`: the observer weight block's upload, storage and status;
 //! - `drive`: what the server needs of a drive ([`DriveAccess`]) and of a
 //!   store ([`ParamStore`]);
 //! - `server`: request in, reply out ([`Server`]).
@@ -19,6 +20,7 @@ pub mod can;
 pub mod drive;
 pub mod frame;
 pub mod messages;
+pub mod observer;
 pub mod params;
 pub mod server;
 

@@ -168,6 +168,7 @@ impl Server {
             Request::Telemetry { fields, rate_hz } => self.configure_telemetry(*fields, *rate_hz, drive),
             Request::Capture(c) => Self::capture(c, drive),
             Request::Test(t) => Self::test(t, drive),
+            Request::Observer(o) => super::observer::handle(o, drive, store),
         };
         Some(reply(seq, out.unwrap_or_else(Reply::Error)))
     }
@@ -238,13 +239,13 @@ impl Server {
         Ok(Reply::Param { index, value })
     }
 
-    fn save<D: DriveAccess, S: ParamStore>(drive: &D, store: &mut S) -> Result<Reply, Error> {
+    fn save<D: DriveAccess, S: ParamStore>(drive: &mut D, store: &mut S) -> Result<Reply, Error> {
         if !bridge_off(&drive.status()) {
             return Err(Error::BridgeOn);
         }
-        let mut buf = [0u8; record::RECORD_MAX];
-        let bytes = record::encode(&drive.params(), &mut buf).map_err(|e| Error::Storage { reason: text(e.reason()) })?;
-        store.save(bytes).map_err(|reason| Error::Storage { reason })?;
+        let weights = drive.observer_weights();
+        let uploaded = !crate::protocol::observer::is_compiled(weights);
+        super::observer::store_record(&drive.params(), uploaded.then_some(weights), drive, store)?;
         Ok(Reply::Ok)
     }
 
@@ -258,12 +259,13 @@ impl Server {
         // A record that cannot be used is refused and nothing changes: the
         // live set may hold unsaved gains.
         let n = store.load(&mut buf).map_err(|reason| Error::Storage { reason })?;
-        let p = record::decode(buf.get(..n).unwrap_or(&[])).map_err(|e| match e {
+        let d = record::decode_record(buf.get(..n).unwrap_or(&[])).map_err(|e| match e {
             record::RecordError::Invalid(pe) => invalid_param(pe),
             e => Error::Storage { reason: text(e.reason()) },
         })?;
-        self.apply_whole(p, drive)?;
-        Ok(Reply::Loaded { from_flash: true, note: text("record applied") })
+        self.apply_whole(d.params, drive)?;
+        let note = super::observer::run_stored(d.observer, drive, store);
+        Ok(Reply::Loaded { from_flash: true, note })
     }
 
     fn defaults<D: DriveAccess>(&mut self, drive: &mut D) -> Result<Reply, Error> {

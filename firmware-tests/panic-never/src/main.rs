@@ -129,7 +129,12 @@ mod protocol {
         fn test_signal(&mut self, _: &TestSignal) -> Result<(), Reason> {
             Err(Reason::NotRunning)
         }
+        fn observer_weights(&self) -> &'static servo_core::observer::block::Weights {
+            self.0.observer_weights()
+        }
     }
+
+    static mut STAGING: servo_core::observer::block::Staging = servo_core::observer::block::Staging::new();
 
     pub struct Store;
 
@@ -144,6 +149,10 @@ mod protocol {
                 *b = opaque(addr_of!(SELECT)).wrapping_add(i as u32) as u8;
             }
             Ok(n)
+        }
+        fn observer_staging(&mut self) -> Option<&mut servo_core::observer::block::Staging> {
+            // SAFETY: one thread; the only reference to it at a time.
+            Some(unsafe { &mut *core::ptr::addr_of_mut!(STAGING) })
         }
     }
 
@@ -171,8 +180,8 @@ mod protocol {
             sink(6, c.apply_params(&v).is_ok() as u32);
         }
         let mut rec = [0u8; record::RECORD_MAX];
-        sink(6, record::encode(&opaque(addr_of!(PARAMS)), &mut rec).map_or(0, |r| r.len() as u32));
-        sink(6, record::decode(&rec).is_ok() as u32);
+        sink(6, record::encode(&opaque(addr_of!(PARAMS)), Some(c.observer_weights()), &mut rec).map_or(0, |r| r.len() as u32));
+        sink(6, record::decode_record(&rec).is_ok() as u32);
     }
 }
 

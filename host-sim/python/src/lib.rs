@@ -68,6 +68,17 @@ fn refused(what: &str, e: &DriveErr) -> PyErr {
     raise(kind, message, serde_json::json!({ "reason": reason, "field": field }))
 }
 
+fn observer_json(s: &protocol::ObserverStatus) -> String {
+    json_text(&serde_json::json!({
+        "source": format!("{:?}", s.source).to_lowercase(),
+        "inputs": s.inputs,
+        "hidden": s.hidden,
+        "words": s.words,
+        "structure_hash": client::hex(&s.structure_hash),
+        "words_crc": format!("{:08x}", s.words_crc),
+    }))
+}
+
 fn json_text(v: &serde_json::Value) -> String {
     v.to_string()
 }
@@ -262,6 +273,34 @@ impl NativeDrive {
         match self.ask(Request::Load)? {
             Reply::Loaded { note, from_flash } => Ok(json_text(&serde_json::json!({ "from_flash": from_flash, "note": note.as_str() }))),
             _ => Ok(json_text(&serde_json::json!({ "from_flash": true, "note": "" }))),
+        }
+    }
+
+    /// Which observer weights run (JSON: source, shape, words CRC).
+    fn observer_status(&mut self) -> PyResult<String> {
+        match self.ask(Request::Observer(protocol::ObserverRequest::Status))? {
+            Reply::Observer(s) => Ok(observer_json(&s)),
+            r => Err(raise("DriveError", format!("observer status answered with {r:?}"), serde_json::json!({}))),
+        }
+    }
+
+    /// Uploads a trainer's model.json as the observer's weights (checked,
+    /// stored with the parameters, run; verified by CRC). A refusal names
+    /// the part.
+    fn upload_observer(&mut self, path: &str) -> PyResult<String> {
+        let w = tool::observer::read_model(std::path::Path::new(path))
+            .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({ "field": path })))?;
+        let c = self.c()?;
+        let s = Python::with_gil(|py| py.allow_threads(|| tool::observer::upload(c, &w)))
+            .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({})))?;
+        Ok(observer_json(&s))
+    }
+
+    /// Back to the compiled observer weights (stored as such).
+    fn use_compiled_observer(&mut self) -> PyResult<String> {
+        match self.ask(Request::Observer(protocol::ObserverRequest::UseCompiled))? {
+            Reply::Observer(s) => Ok(observer_json(&s)),
+            r => Err(raise("DriveError", format!("observer compiled answered with {r:?}"), serde_json::json!({}))),
         }
     }
 

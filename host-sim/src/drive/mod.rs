@@ -24,7 +24,7 @@ use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, Result};
 use servo_core::controller::ApplyError;
 use servo_core::params::{record, ValidatedParams};
-use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus};
+use servo_core::protocol::drive::{on_controller, CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use servo_core::protocol::server::{Identity, Server};
 use servo_core::protocol::{self, CaptureRequest, DriveFrame, Error, Reply, Request, RequestFrame, TelemetryFrame, TestSignal};
 use servo_core::{Command, CommandError, CommandOutcome, ControlParams};
@@ -135,6 +135,9 @@ impl DriveAccess for Access<'_> {
     fn test_signal(&mut self, signal: &TestSignal) -> Result<(), servo_core::protocol::Reason> {
         on_controller::test_signal(&mut self.cl.controller, signal)
     }
+    fn observer_weights(&self) -> &'static servo_core::observer::block::Weights {
+        self.cl.controller.observer_weights()
+    }
 }
 
 /// One simulated drive: the closed loop, the protocol server and what the
@@ -160,7 +163,7 @@ impl SimDrive {
     /// Starts like a board: the saved record, if there is a usable one,
     /// replaces the image's defaults (the rig file's `[control]`).
     pub fn new(opts: DriveOptions) -> Result<Self> {
-        let store = store::FileStore { path: opts.store.clone() };
+        let mut store = store::FileStore::new(opts.store.clone());
         let rig = &opts.rig;
         let mut plant = Plant::new(rig.plant.clone(), opts.seed);
         let x0 = opts.initial_position_m;
@@ -171,9 +174,28 @@ impl SimDrive {
         let defaults = if opts.commissioned { commissioned_control(rig.control, &plant) } else { rig.control };
         let defaults = ValidatedParams::new(defaults).map_err(|e| anyhow!("control parameters: {e}"))?;
         use servo_core::protocol::{BootRecord, RecordRejection};
+        let mut boot_weights = None;
         let (mut params, boot_note, boot_record) = match store.read() {
-            Ok(Some(bytes)) => match record::decode(&bytes) {
-                Ok(p) => (*p.get(), "saved record loaded".to_string(), BootRecord::Loaded),
+            Ok(Some(bytes)) => match record::decode_record(&bytes) {
+                Ok(d) => {
+                    let mut note = "saved record loaded".to_string();
+                    match d.observer.map(|s| s.weights) {
+                        None => {}
+                        Some(Ok(_)) => match store.stored_observer() {
+                            Ok(w) => {
+                                boot_weights = w;
+                                note.push_str(" with its observer weights");
+                            }
+                            Err(e) => note.push_str(&format!("; observer weights not used ({e}): compiled weights")),
+                        },
+                        Some(Err(e)) => note.push_str(&format!(
+                            "; observer weights refused ({}: {}): compiled weights",
+                            e.part.name(),
+                            e.reason.text()
+                        )),
+                    }
+                    (*d.params.get(), note, BootRecord::Loaded)
+                }
                 Err(e) => (*defaults.get(), format!("saved record not used ({}); image defaults", e.reason()), BootRecord::of_error(&e)),
             },
             Ok(None) => (*defaults.get(), "no saved record; image defaults".to_string(), BootRecord::NoRecord),
@@ -202,6 +224,9 @@ impl SimDrive {
         cl.override_pending(servo_core::PwmCommand::OFF);
         // The board's capture store is a `static`; one per simulated drive.
         cl.controller.attach_capture_store(Box::leak(Box::new(servo_core::capture::CaptureStore::new())));
+        if let Some(w) = boot_weights {
+            cl.controller.command(Command::SetObserverWeights { weights: w }).map_err(|e| anyhow!("observer weights: {e:?}"))?;
+        }
         if opts.commissioned {
             cl.controller
                 .command(Command::SetHome { position_m: x0 as f32 })
@@ -363,6 +388,12 @@ pub fn is_read_only(r: &Request) -> bool {
     use servo_core::protocol::CaptureRequest as C;
     matches!(
         r,
-        Request::Info | Request::Status | Request::ParamCount | Request::ParamGet { .. } | Request::Telemetry { .. } | Request::Capture(C::Status | C::Read { .. })
+        Request::Info
+            | Request::Status
+            | Request::ParamCount
+            | Request::ParamGet { .. }
+            | Request::Telemetry { .. }
+            | Request::Capture(C::Status | C::Read { .. })
+            | Request::Observer(servo_core::protocol::ObserverRequest::Status)
     )
 }

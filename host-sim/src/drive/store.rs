@@ -3,7 +3,14 @@
 //! magic, parameter-schema hash, one word per leaf, CRC-32) byte for byte, so a
 //! record from another layout or a corrupted one is refused as the board
 //! refuses it.
+//!
+//! Like the board it gathers an uploaded observer block beside the record
+//! and gives back the weights of the record it holds, read from the file
+//! (the board runs them in place from flash; here a leaked copy per save,
+//! a few hundred bytes).
 
+use servo_core::observer::block::{Staging, Weights};
+use servo_core::params::record;
 use servo_core::protocol::drive::ParamStore;
 use servo_core::protocol::server::text;
 use servo_core::protocol::Text;
@@ -12,9 +19,14 @@ use std::path::PathBuf;
 #[derive(Clone, Debug)]
 pub struct FileStore {
     pub path: Option<PathBuf>,
+    staging: Box<Staging>,
 }
 
 impl FileStore {
+    pub fn new(path: Option<PathBuf>) -> Self {
+        Self { path, staging: Box::new(Staging::new()) }
+    }
+
     /// The stored bytes; `Ok(None)` when nothing is stored.
     pub fn read(&self) -> Result<Option<Vec<u8>>, String> {
         let Some(path) = &self.path else { return Ok(None) };
@@ -44,6 +56,20 @@ impl ParamStore for FileStore {
                 Ok(b.len())
             }
             Err(e) => Err(text(&e)),
+        }
+    }
+
+    fn observer_staging(&mut self) -> Option<&mut Staging> {
+        self.path.is_some().then_some(&mut *self.staging)
+    }
+
+    fn stored_observer(&mut self) -> Result<Option<&'static Weights>, Text> {
+        let Some(bytes) = self.read().map_err(|e| text(&e))? else { return Ok(None) };
+        let d = record::decode_record(&bytes).map_err(|e| text(e.reason()))?;
+        match d.observer.map(|s| s.weights) {
+            None => Ok(None),
+            Some(Ok(w)) => Ok(Some(Box::leak(Box::new(w)))),
+            Some(Err(e)) => Err(text(&format!("stored observer block refused: {} ({})", e.part.name(), e.reason.text()))),
         }
     }
 }

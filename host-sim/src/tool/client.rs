@@ -270,6 +270,13 @@ pub fn describe(e: &Error) -> String {
         Error::Stream { reason } => format!("stream: {reason}{}", stream_hint(*reason)),
         Error::Capture { reason } => format!("capture: {reason}"),
         Error::Test { reason } => format!("test: {reason}"),
+        Error::ObserverBlock(b) => format!(
+            "observer weights refused: {}{}: {}; the running weights are unchanged",
+            b.part.name(),
+            if matches!(b.part, servo_core::observer::block::Part::Bias | servo_core::observer::block::Part::OutputScale | servo_core::observer::block::Part::OutputOffset | servo_core::observer::block::Part::StructureHash) { String::new() } else { format!("[{}]", b.index) },
+            b.reason
+        ),
+        Error::ObserverStore { reason } => format!("observer weights: {reason}; the running weights are unchanged"),
         Error::Busy => "busy with a request of this kind; retry".into(),
         Error::StreamDisagrees { reason, measured_m_s, bound_m_s, interval_s } => format!(
             "stream: {reason}: {measured_m_s:+.4} m/s against {bound_m_s:.4} m/s ({:.3} ms since the last point taken); check the velocity column's units and that the CSV's rate is the one the points are sent at (`drive info` shows the drive's stream period)",

@@ -7,6 +7,7 @@ pub mod bench;
 pub mod bench_gain;
 pub mod client;
 pub mod config_file;
+pub mod observer;
 pub mod params;
 pub mod scope;
 pub mod stream;
@@ -121,6 +122,9 @@ pub enum DriveCmd {
     },
     #[command(subcommand)]
     Param(ParamCmd),
+    /// The observer's weights: status, upload, back to the compiled model.
+    #[command(subcommand)]
+    Observer(ObserverCmd),
     /// enable | disable | calibrate | align | home | startup | stop | clear-faults | comp on|off
     Cmd { name: String, arg: Option<String> },
     /// A planned move to POSITION_M.
@@ -224,6 +228,18 @@ pub enum DriveCmd {
 }
 
 #[derive(Subcommand)]
+pub enum ObserverCmd {
+    /// Which weights the observer runs (compiled or uploaded) and their CRC.
+    Status,
+    /// Upload a trainer's model.json as the observer's weights: checked by
+    /// the drive, stored in flash with the present parameters, run at once
+    /// (bridge off). A refused block names its part; nothing changes.
+    Upload { model: PathBuf },
+    /// Back to the weights compiled into the image (stored as such).
+    Compiled,
+}
+
+#[derive(Subcommand)]
 pub enum ParamCmd {
     /// Every parameter, `path = value` (enums by name).
     List,
@@ -314,6 +330,17 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             if n == 0 {
                 bail!("no telemetry arrived in {seconds} s");
             }
+        }
+        DriveCmd::Observer(o) => {
+            let s = match o {
+                ObserverCmd::Status => observer::status(c)?,
+                ObserverCmd::Upload { model } => {
+                    let w = observer::read_model(&model)?;
+                    observer::upload(c, &w).with_context(|| format!("uploading {}", model.display()))?
+                }
+                ObserverCmd::Compiled => observer::use_compiled(c)?,
+            };
+            println!("{}", observer::describe_status(&s));
         }
         DriveCmd::Param(p) => match p {
             ParamCmd::List => {

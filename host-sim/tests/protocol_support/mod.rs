@@ -24,6 +24,8 @@ pub struct MockDrive {
     /// A power stage's rating, checked with the core's check as a board's
     /// and the simulated drive's `DriveAccess` do: a set asking more is refused.
     pub rating: Option<servo_core::params::PowerStageRating>,
+    /// The weights the observer runs (`Command::SetObserverWeights`).
+    pub observer: &'static servo_core::observer::block::Weights,
 }
 
 impl MockDrive {
@@ -40,6 +42,7 @@ impl MockDrive {
             captures: 0,
             tests: 0,
             rating: None,
+            observer: &servo_core::observer::block::COMPILED,
         }
     }
 
@@ -75,6 +78,7 @@ impl DriveAccess for MockDrive {
             Command::Enable => self.mode = Mode::Running,
             Command::Disable => self.mode = Mode::Disabled,
             Command::Stream { position_m, .. } => self.position_reference_m = position_m,
+            Command::SetObserverWeights { weights } => self.observer = weights,
             _ => {}
         }
         Ok(CommandOutcome::Accepted)
@@ -109,6 +113,10 @@ impl DriveAccess for MockDrive {
         self.tests += 1;
         Ok(())
     }
+
+    fn observer_weights(&self) -> &'static servo_core::observer::block::Weights {
+        self.observer
+    }
 }
 
 /// A store in memory; `fail` makes every call fail.
@@ -116,6 +124,7 @@ impl DriveAccess for MockDrive {
 pub struct MemStore {
     pub record: Vec<u8>,
     pub fail: bool,
+    pub staging: servo_core::observer::block::Staging,
 }
 
 impl ParamStore for MemStore {
@@ -134,6 +143,15 @@ impl ParamStore for MemStore {
         let n = self.record.len();
         buf.get_mut(..n).ok_or_else(|| server::text("record too long"))?.copy_from_slice(&self.record);
         Ok(n)
+    }
+
+    fn observer_staging(&mut self) -> Option<&mut servo_core::observer::block::Staging> {
+        Some(&mut self.staging)
+    }
+
+    fn stored_observer(&mut self) -> Result<Option<&'static servo_core::observer::block::Weights>, Text> {
+        let d = servo_core::params::record::decode_record(&self.record).map_err(|e| server::text(e.reason()))?;
+        Ok(d.observer.and_then(|s| s.weights.ok()).map(|w| &*Box::leak(Box::new(w))))
     }
 }
 

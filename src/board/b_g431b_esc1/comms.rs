@@ -35,7 +35,8 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::pipe::Pipe;
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
 use embassy_stm32::{bind_interrupts, can, dma, pac, Peri};
-use servo_core::params::record::RECORD_MAX;
+use servo_core::observer::block::{Staging, Weights};
+use servo_core::params::record::{self, RECORD_MAX};
 use servo_core::protocol::can::{SETPOINT_ID, STOP_ID};
 use servo_core::protocol::server::text;
 use servo_core::protocol::{ParamStore, Text};
@@ -112,7 +113,7 @@ impl CommsPeripherals {
         Comms {
             serial: serial(self.usart2, self.usart_rx, self.usart_tx, self.dma_tx, self.dma_rx),
             can: fdcan(self.fdcan1, self.can_rx, self.can_tx),
-            store: FlashStore { _flash: self.flash },
+            store: FlashStore { _flash: self.flash, staging: Staging::new() },
         }
     }
 }
@@ -271,9 +272,15 @@ const _: () = assert!(HEADER_BYTES + RECORD_MAX <= PAGE_BYTES as usize);
 /// the server refuses `Save` outside Disabled/Fault already), raises
 /// `FLASH_STALL` so the interrupt does not report the missed periods as an
 /// overrun, and feeds the watchdog before and after.
+///
+/// An uploaded observer block is gathered in `staging` (its only RAM copy)
+/// and, once stored, run in place from the newest page
+/// ([`ParamStore::stored_observer`]): the server points the controller at
+/// the new page after every save, before the next save can erase the old.
 pub struct FlashStore {
     /// Held so embassy never hands the flash to anyone else.
     _flash: Peri<'static, FLASH>,
+    staging: Staging,
 }
 
 #[derive(Clone, Copy)]
@@ -475,5 +482,39 @@ impl ParamStore for FlashStore {
             }
             None => Ok(0),
         }
+    }
+
+    fn observer_staging(&mut self) -> Option<&mut Staging> {
+        Some(&mut self.staging)
+    }
+
+    fn stored_observer(&mut self) -> Result<Option<&'static Weights>, Text> {
+        for (page, h) in self.pages().into_iter().flatten() {
+            let base = FLASH_BASE + Self::page_offset(page) + HEADER_BYTES as u32;
+            // SAFETY: `h.len` ≤ RECORD_MAX bytes of the store's pages
+            // (checked by `header`): mapped, readable flash, written only by
+            // `save`, which does not run while this slice lives.
+            let bytes = unsafe { core::slice::from_raw_parts(base as *const u8, h.len) };
+            // The newest record that decodes, as `load` picks it.
+            let Ok(d) = record::decode_record(bytes) else { continue };
+            return match d.observer {
+                None => Ok(None),
+                Some(sec) if sec.weights.is_ok() => {
+                    let at = base + sec.words_offset as u32;
+                    if at as usize % core::mem::align_of::<Weights>() != 0 {
+                        return Err(text("stored observer block not aligned"));
+                    }
+                    // SAFETY: `decode_record` checked that `WORDS` finite
+                    // f32 words start at `at` (aligned, above) and form a
+                    // valid block; `Weights` is `repr(C)`, all f32, exactly
+                    // those words in that order. The page stays as it is
+                    // until a later save erases it, and the server points
+                    // the controller elsewhere after each save first.
+                    Ok(Some(unsafe { &*(at as *const Weights) }))
+                }
+                Some(_) => Err(text("stored observer block does not fit this firmware")),
+            };
+        }
+        Ok(None)
     }
 }

@@ -15,7 +15,7 @@ definition the firmware uses; the schema hashes are checked at connect.
 """
 
 from .errors import (CommandRefused, ConnectError, ConnectionLost, DriveError, DriveTimeout, InputError,
-                     ParameterRejected, Refused, SchemaMismatch, SimulatorError, StreamRejected, UnknownParameter)
+                     ObserverRejected, ParameterRejected, Refused, SchemaMismatch, SimulatorError, StreamRejected, UnknownParameter)
 from .types import Capture, Frf, Info, Mode, Parameter, Status, StreamReport, TestResult
 from .drive import (CAPTURE_SIGNALS, PARAM_PATHS, PARAMS_SCHEMA_HASH, SCHEMA_HASH, TELEMETRY_FIELDS, Drive, Telemetry,
                     connect, paper_reference, unit_of)
@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 __all__ = [
     "CAPTURE_SIGNALS", "PARAM_PATHS", "PARAMS_SCHEMA_HASH", "SCHEMA_HASH", "TELEMETRY_FIELDS",
     "Capture", "CommandRefused", "ConnectError", "ConnectionLost", "Drive", "DriveError", "DriveTimeout", "Frf",
-    "Info", "InputError", "Mode", "Parameter", "ParameterRejected", "Refused", "SchemaMismatch", "SimulatedDrive",
+    "Info", "InputError", "Mode", "ObserverRejected", "Parameter", "ParameterRejected", "Refused", "SchemaMismatch", "SimulatedDrive",
     "SimulatorError", "Status", "StreamRejected", "StreamReport", "Telemetry", "TestResult", "UnknownParameter",
     "connect", "find_host_sim", "paper_reference", "unit_of",
 ]

@@ -244,6 +244,23 @@ class Drive:
         """Applies the image's default parameters (flash untouched until :meth:`save`)."""
         _call(self._n.param_defaults)
 
+    # ---- observer weights -----------------------------------------------------------
+    def observer_status(self) -> Dict[str, Any]:
+        """Which observer weights run: ``source`` ("compiled" or "uploaded"), shape,
+        structure hash and the CRC of the running words."""
+        return json.loads(_call(self._n.observer_status))
+
+    def upload_observer(self, model_json: "os.PathLike[str] | str") -> Dict[str, Any]:
+        """Uploads a trainer's ``model.json`` as the observer's weights: checked by the
+        drive, stored in flash with the present parameters, run at once (bridge off),
+        and verified by the CRC of the words the drive runs. A refused block raises
+        ``ObserverRejected`` naming the part; the running weights are unchanged."""
+        return json.loads(_call(self._n.upload_observer, os.fspath(model_json)))
+
+    def use_compiled_observer(self) -> Dict[str, Any]:
+        """Back to the observer weights compiled into the image."""
+        return json.loads(_call(self._n.use_compiled_observer))
+
     # ---- commands -------------------------------------------------------------------
     def _command(self, name: str, arg: Optional[float] = None) -> Dict[str, Any]:
         if arg is not None:

@@ -64,6 +64,13 @@ class ParameterRejected(Refused, ValueError):
     or changeable only with the bridge off. ``field`` is the parameter's path."""
 
 
+class ObserverRejected(Refused, ValueError):
+    """Observer weights the drive (or this side, reading the file) refused: wrong shape,
+    NaN or infinite words, another structure hash, a normalisation that does not match,
+    a prediction beyond the shift bound. The message names the part; the running
+    weights are unchanged."""
+
+
 class UnknownParameter(DriveError, KeyError):
     """No parameter at this path; ``suggestions`` are the closest paths."""
 
@@ -104,6 +111,7 @@ _KINDS = {
     "Refused": Refused,
     "CommandRefused": CommandRefused,
     "ParameterRejected": ParameterRejected,
+    "ObserverRejected": ObserverRejected,
     "UnknownParameter": UnknownParameter,
     "ValueError": InputError,
 }

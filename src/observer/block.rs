@@ -1,0 +1,404 @@
+//! The observer's weights as a parameter block: what a host uploads, what
+//! the flash record keeps after the parameters, and what the drive checks
+//! before it runs them.
+//!
+//! The block is the model's `f32` words in a fixed order ([`Part`] order:
+//! input ranges and scales, centres row by row, widths, decays, output
+//! weights, linear term, bias, output scale and offset), preceded by the
+//! [`STRUCTURE_HASH`] of the network it was trained for. A block is used
+//! whole or not at all: [`validate`] names the first part that is wrong and
+//! the running weights stay as they were.
+//!
+//! The words travel and are stored as their bit patterns, and the forward
+//! pass is the same function for the compiled and the uploaded model, so a
+//! prediction from uploaded weights is bit for bit the one of the same
+//! weights compiled in.
+
+use super::model::{HIDDEN, INPUTS, INPUT_NAMES};
+use super::RbfModel;
+use crate::reason::Reason;
+use postcard_schema::Schema;
+use serde::{Deserialize, Serialize};
+
+/// The model the firmware runs: the compiled one or an uploaded block.
+pub type Weights = RbfModel<INPUTS, HIDDEN>;
+
+/// The compiled model at one address (a `const` has none: each `&MODEL`
+/// may be another copy), so "runs the compiled weights" is a pointer
+/// comparison and a reference to it is what the controller starts with.
+pub static COMPILED: Weights = super::model::MODEL;
+
+/// Words per block: 4 per input (min, max, scale, linear), `INPUTS + 3` per
+/// hidden unit (centre, width, decay, weight), bias, output scale, offset.
+pub const WORDS: usize = 4 * INPUTS + HIDDEN * (INPUTS + 3) + 3;
+
+/// Words one upload chunk carries at most (a frame stays under
+/// `protocol::FRAME_MAX`).
+pub const CHUNK_WORDS: usize = 32;
+
+/// FNV-1a (64 bit) of `bytes`, continuing from `h`.
+const fn fnv1a(mut h: u64, mut bytes: &[u8]) -> u64 {
+    while let [b, rest @ ..] = bytes {
+        h ^= *b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        bytes = rest;
+    }
+    h
+}
+
+const fn structure_hash() -> [u8; 8] {
+    let mut h = fnv1a(0xcbf2_9ce4_8422_2325, b"gaussian-rbf+linear;output=terminal_error_m;inputs=");
+    let mut names: &[&str] = &INPUT_NAMES;
+    while let [name, rest @ ..] = names {
+        h = fnv1a(h, name.as_bytes());
+        h = fnv1a(h, b",");
+        names = rest;
+    }
+    h = fnv1a(h, &(INPUTS as u32).to_le_bytes());
+    h = fnv1a(h, &(HIDDEN as u32).to_le_bytes());
+    h.to_le_bytes()
+}
+
+/// What the network is: its kind (Gaussian RBF with a linear term,
+/// predicting the terminal error), its inputs by name and order, and the
+/// input and hidden counts. A block trained for another network carries
+/// another hash and is refused.
+pub const STRUCTURE_HASH: [u8; 8] = structure_hash();
+
+/// The parts of a block, in word order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Part {
+    /// The declared input and hidden counts (and the number of words).
+    Shape,
+    StructureHash,
+    InputMin,
+    InputMax,
+    InputScale,
+    Centres,
+    Widths,
+    Log2Decay,
+    Weights,
+    Linear,
+    Bias,
+    OutputScale,
+    OutputOffset,
+    /// The whole model: its prediction somewhere in the trained range.
+    Prediction,
+}
+
+impl Part {
+    /// The part's name as the docs and the host tool write it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Shape => "shape",
+            Self::StructureHash => "structure_hash",
+            Self::InputMin => "input_min",
+            Self::InputMax => "input_max",
+            Self::InputScale => "input_scale",
+            Self::Centres => "centres",
+            Self::Widths => "widths",
+            Self::Log2Decay => "log2_decay",
+            Self::Weights => "weights",
+            Self::Linear => "linear",
+            Self::Bias => "bias",
+            Self::OutputScale => "output_scale",
+            Self::OutputOffset => "output_offset",
+            Self::Prediction => "prediction",
+        }
+    }
+}
+
+/// Why a block was refused: the part, the element in it (input, unit or
+/// `unit * INPUTS + input` for the centres; 0 for a scalar) and why.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BlockError {
+    pub part: Part,
+    pub index: u16,
+    pub reason: Reason,
+}
+
+const fn err(part: Part, index: usize, reason: Reason) -> BlockError {
+    BlockError { part, index: if index > u16::MAX as usize { u16::MAX } else { index as u16 }, reason }
+}
+
+/// Part of word `i` and its index in the part.
+pub fn part_of(i: usize) -> (Part, usize) {
+    let spans: [(Part, usize); 11] = [
+        (Part::InputMin, INPUTS),
+        (Part::InputMax, INPUTS),
+        (Part::InputScale, INPUTS),
+        (Part::Centres, HIDDEN * INPUTS),
+        (Part::Widths, HIDDEN),
+        (Part::Log2Decay, HIDDEN),
+        (Part::Weights, HIDDEN),
+        (Part::Linear, INPUTS),
+        (Part::Bias, 1),
+        (Part::OutputScale, 1),
+        (Part::OutputOffset, 1),
+    ];
+    let mut start = 0usize;
+    for (part, n) in spans {
+        let end = start.saturating_add(n);
+        if i < end {
+            return (part, i.saturating_sub(start));
+        }
+        start = end;
+    }
+    (Part::Shape, i)
+}
+
+/// The model's words in block order.
+pub fn to_words(m: &Weights) -> [f32; WORDS] {
+    let mut out = [0.0f32; WORDS];
+    let centres = m.centres.iter().flat_map(|c| c.iter());
+    let src = m
+        .input_min
+        .iter()
+        .chain(m.input_max.iter())
+        .chain(m.input_scale.iter())
+        .chain(centres)
+        .chain(m.widths.iter())
+        .chain(m.log2_decay.iter())
+        .chain(m.weights.iter())
+        .chain(m.linear.iter())
+        .chain(core::iter::once(&m.bias))
+        .chain(core::iter::once(&m.output_scale))
+        .chain(core::iter::once(&m.output_offset));
+    for (o, &v) in out.iter_mut().zip(src) {
+        *o = v;
+    }
+    out
+}
+
+/// The model of a block's words (no checks: see [`validate`]).
+pub fn from_words(w: &[f32; WORDS]) -> Weights {
+    let mut m = Weights {
+        input_min: [0.0; INPUTS],
+        input_max: [0.0; INPUTS],
+        input_scale: [0.0; INPUTS],
+        centres: [[0.0; INPUTS]; HIDDEN],
+        widths: [0.0; HIDDEN],
+        log2_decay: [0.0; HIDDEN],
+        weights: [0.0; HIDDEN],
+        linear: [0.0; INPUTS],
+        bias: 0.0,
+        output_scale: 0.0,
+        output_offset: 0.0,
+    };
+    let mut words = w.iter().copied();
+    let mut fill = |dst: &mut [f32]| {
+        for d in dst.iter_mut() {
+            *d = words.next().unwrap_or(0.0);
+        }
+    };
+    fill(&mut m.input_min);
+    fill(&mut m.input_max);
+    fill(&mut m.input_scale);
+    for c in m.centres.iter_mut() {
+        fill(c);
+    }
+    fill(&mut m.widths);
+    fill(&mut m.log2_decay);
+    fill(&mut m.weights);
+    fill(&mut m.linear);
+    let mut tail = [0.0f32; 3];
+    fill(&mut tail);
+    let [bias, scale, offset] = tail;
+    m.bias = bias;
+    m.output_scale = scale;
+    m.output_offset = offset;
+    m
+}
+
+/// `a` and `b` agree within `rel` of `b` (both finite).
+fn close(a: f32, b: f32, rel: f32) -> bool {
+    (a - b).abs() <= rel * b.abs()
+}
+
+/// Relative tolerance of the derived words (`input_scale`, `log2_decay`):
+/// the generator rounds them once from `f64`, the check recomputes in `f32`.
+const DERIVED_REL: f32 = 1e-5;
+
+/// Checks a block against this firmware's network and the drive's shift
+/// bound (`faults.observer_shift_max_m`), and returns its model:
+/// - shape: `inputs`, `hidden` and the word count are this network's;
+/// - the structure hash is this network's;
+/// - every word finite;
+/// - normalisation: `input_max > input_min`, `input_scale = 2 / (max − min)`;
+///   widths positive and `log2_decay = log₂e / 2σ²`; output scale positive;
+/// - shift: the prediction at every corner of the trained input range and
+///   at every centre lies within `shift_max_m`, and so does the offset.
+pub fn validate(
+    inputs: u16,
+    hidden: u16,
+    structure_hash: &[u8; 8],
+    words: &[f32],
+    shift_max_m: f32,
+) -> Result<Weights, BlockError> {
+    if usize::from(inputs) != INPUTS {
+        return Err(err(Part::Shape, 0, Reason::ObserverInputCount));
+    }
+    if usize::from(hidden) != HIDDEN {
+        return Err(err(Part::Shape, 1, Reason::ObserverHiddenCount));
+    }
+    if words.len() != WORDS {
+        return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
+    }
+    if structure_hash != &STRUCTURE_HASH {
+        return Err(err(Part::StructureHash, 0, Reason::ObserverStructureHash));
+    }
+    let mut w = [0.0f32; WORDS];
+    for (i, (d, &s)) in w.iter_mut().zip(words.iter()).enumerate() {
+        if !s.is_finite() {
+            let (part, k) = part_of(i);
+            return Err(err(part, k, Reason::MustBeFinite));
+        }
+        *d = s;
+    }
+    let m = from_words(&w);
+    for (j, ((&lo, &hi), &scale)) in m.input_min.iter().zip(m.input_max.iter()).zip(m.input_scale.iter()).enumerate() {
+        if !(hi > lo) {
+            return Err(err(Part::InputMax, j, Reason::ObserverRangeEmpty));
+        }
+        let want = 2.0 / (hi - lo);
+        if !want.is_finite() || !close(scale, want, DERIVED_REL) {
+            return Err(err(Part::InputScale, j, Reason::ObserverScaleMismatch));
+        }
+    }
+    for (k, (&s, &decay)) in m.widths.iter().zip(m.log2_decay.iter()).enumerate() {
+        if !(s > 0.0) {
+            return Err(err(Part::Widths, k, Reason::MustBePositive));
+        }
+        let want = core::f32::consts::LOG2_E / (2.0 * s * s);
+        if !want.is_finite() || !close(decay, want, DERIVED_REL) {
+            return Err(err(Part::Log2Decay, k, Reason::ObserverDecayMismatch));
+        }
+    }
+    if !(m.output_scale > 0.0) {
+        return Err(err(Part::OutputScale, 0, Reason::MustBePositive));
+    }
+    if !(m.output_offset.abs() <= shift_max_m) {
+        return Err(err(Part::OutputOffset, 0, Reason::ObserverShiftBeyondBound));
+    }
+    // Corners of the trained range (bit j of `c`: input j at its max)…
+    for c in 0..(1usize << INPUTS) {
+        let mut x = m.input_min;
+        for (j, xj) in x.iter_mut().enumerate() {
+            if c & (1 << j) != 0 {
+                *xj = m.input_max.get(j).copied().unwrap_or(*xj);
+            }
+        }
+        check_shift(&m, x, shift_max_m, c)?;
+    }
+    // …and every centre inside it, in physical units.
+    for (k, centre) in m.centres.iter().enumerate() {
+        let mut x = [0.0f32; INPUTS];
+        for (j, (xj, &cz)) in x.iter_mut().zip(centre.iter()).enumerate() {
+            let (lo, hi) = (m.input_min.get(j).copied().unwrap_or(0.0), m.input_max.get(j).copied().unwrap_or(0.0));
+            *xj = crate::math::clamp(lo + (cz + 1.0) * 0.5 * (hi - lo), lo, hi);
+        }
+        check_shift(&m, x, shift_max_m, (1usize << INPUTS).saturating_add(k))?;
+    }
+    Ok(m)
+}
+
+fn check_shift(m: &Weights, x: [f32; INPUTS], shift_max_m: f32, point: usize) -> Result<(), BlockError> {
+    let p = super::evaluate(m, x);
+    if !p.valid || !(p.value_m.abs() <= shift_max_m) {
+        return Err(err(Part::Prediction, point, Reason::ObserverShiftBeyondBound));
+    }
+    Ok(())
+}
+
+/// A block being uploaded: the words received so far. Chunks come in
+/// order; one sent again (a lost reply) is taken again; `Commit` needs
+/// every word.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Staging {
+    pub inputs: u16,
+    pub hidden: u16,
+    pub structure_hash: [u8; 8],
+    pub words: [f32; WORDS],
+    /// Words `0..received` are in.
+    received: u16,
+    /// `Begin` was accepted.
+    open: bool,
+}
+
+impl Default for Staging {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Staging {
+    pub const fn new() -> Self {
+        Self { inputs: 0, hidden: 0, structure_hash: [0; 8], words: [0.0; WORDS], received: 0, open: false }
+    }
+
+    /// Starts an upload, forgetting any unfinished one. The shape and the
+    /// hash are checked here already, so a wrong block is refused before
+    /// its words are sent.
+    pub fn begin(&mut self, inputs: u16, hidden: u16, words: u16, structure_hash: [u8; 8]) -> Result<(), BlockError> {
+        self.open = false;
+        self.received = 0;
+        if usize::from(inputs) != INPUTS {
+            return Err(err(Part::Shape, 0, Reason::ObserverInputCount));
+        }
+        if usize::from(hidden) != HIDDEN {
+            return Err(err(Part::Shape, 1, Reason::ObserverHiddenCount));
+        }
+        if usize::from(words) != WORDS {
+            return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
+        }
+        if structure_hash != STRUCTURE_HASH {
+            return Err(err(Part::StructureHash, 0, Reason::ObserverStructureHash));
+        }
+        self.inputs = inputs;
+        self.hidden = hidden;
+        self.structure_hash = structure_hash;
+        self.open = true;
+        Ok(())
+    }
+
+    /// Words `start..start + values.len()`.
+    pub fn write(&mut self, start: u16, values: &[f32]) -> Result<(), BlockError> {
+        if !self.open {
+            return Err(err(Part::Shape, 0, Reason::ObserverNoUpload));
+        }
+        if start > self.received {
+            let (part, k) = part_of(usize::from(self.received));
+            return Err(err(part, k, Reason::ObserverWordMissing));
+        }
+        let start = usize::from(start);
+        let end = start.saturating_add(values.len());
+        let Some(dst) = self.words.get_mut(start..end) else {
+            return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
+        };
+        dst.copy_from_slice(values);
+        self.received = self.received.max(u16::try_from(end).unwrap_or(u16::MAX));
+        Ok(())
+    }
+
+    /// The first word not yet received, if any.
+    pub fn missing(&self) -> Option<usize> {
+        let n = usize::from(self.received);
+        (n < WORDS).then_some(n)
+    }
+
+    /// Every word there: the block validated, and the upload closed
+    /// whatever the outcome (a refused block is sent again from `Begin`).
+    pub fn commit(&mut self, shift_max_m: f32) -> Result<Weights, BlockError> {
+        if !self.open {
+            return Err(err(Part::Shape, 0, Reason::ObserverNoUpload));
+        }
+        if let Some(i) = self.missing() {
+            let (part, k) = part_of(i);
+            return Err(err(part, k, Reason::ObserverWordMissing));
+        }
+        self.open = false;
+        validate(self.inputs, self.hidden, &self.structure_hash, &self.words, shift_max_m)
+    }
+}
