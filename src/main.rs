@@ -73,6 +73,11 @@ const IDENTITY: proto::Identity = proto::Identity {
     board: hw::NAME,
 };
 
+/// The image defaults `Defaults` restores, as a `static` (in flash): the
+/// protocol server keeps a reference to them, not a 464-byte copy in the
+/// main task's future (static RAM).
+static DEFAULT_PARAMS: ValidatedParams = board::VALID_PARAMS;
+
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // `run` returns only to park: one `park` future in the task, not one
@@ -199,7 +204,7 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     let mut ticker = Ticker::every(Duration::from_hz(TELEMETRY_HZ));
     let mut tick: u32 = 0;
     let mut button_was = false;
-    let mut server = Server::new(IDENTITY, board::VALID_PARAMS);
+    let mut server = Server::new(IDENTITY, &DEFAULT_PARAMS);
     server.set_boot_record(boot_record);
     let mut reader = FrameReader::new();
     let params_cache = ParamsCache::new(params);
@@ -439,7 +444,7 @@ fn load_params(store: &mut FlashStore) -> (ValidatedParams, BootRecord) {
 
 /// When the next telemetry frame is due at the server's configured rate
 /// (from `from`, or now), `None` when telemetry is off.
-fn telemetry_schedule(server: &Server, from: Option<Instant>) -> Option<Instant> {
+fn telemetry_schedule(server: &Server<&'static ValidatedParams>, from: Option<Instant>) -> Option<Instant> {
     let hz = server.telemetry_rate_hz();
     if hz == 0 {
         return None;

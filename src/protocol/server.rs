@@ -10,6 +10,8 @@
 #![allow(clippy::result_large_err)]
 
 
+use core::borrow::Borrow;
+
 use super::drive::{CaptureReply, DriveAccess, DriveStatus, ParamStore};
 use super::frame::{decode, Feed, FrameReader};
 use super::messages::*;
@@ -49,11 +51,13 @@ struct LastPoint {
 }
 
 /// The protocol server: telemetry configuration and the stream's last
-/// point are its only state.
+/// point are its only state. `P` holds the image defaults: the set itself,
+/// or a `&'static` to it (the board's, in flash: the server then lives in
+/// the main task's future without a 464-byte copy of it in RAM).
 #[derive(Debug)]
-pub struct Server {
+pub struct Server<P = ValidatedParams> {
     identity: Identity,
-    defaults: ValidatedParams,
+    defaults: P,
     telemetry_fields: u32,
     telemetry_rate_hz: u16,
     last_point: Option<LastPoint>,
@@ -108,10 +112,10 @@ fn reply(seq: u16, reply: Reply) -> DriveFrame {
     DriveFrame::Reply { seq, reply }
 }
 
-impl Server {
+impl<P: Borrow<ValidatedParams>> Server<P> {
     /// A server for a drive whose image defaults are `defaults` (what
     /// `Defaults` restores and a failed `Load` falls back to).
-    pub const fn new(identity: Identity, defaults: ValidatedParams) -> Self {
+    pub const fn new(identity: Identity, defaults: P) -> Self {
         Self { identity, defaults, telemetry_fields: 0, telemetry_rate_hz: 0, last_point: None, boot_record: BootRecord::Unknown, stream_period_s: 0.0 }
     }
 
@@ -272,7 +276,7 @@ impl Server {
         if !bridge_off(&drive.status()) {
             return Err(Error::BridgeOn);
         }
-        self.apply_whole(self.defaults, drive)?;
+        self.apply_whole(*self.defaults.borrow(), drive)?;
         Ok(Reply::Ok)
     }
 

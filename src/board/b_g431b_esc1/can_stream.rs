@@ -3,8 +3,11 @@
 //! handed to the server like a `Stream` request; counters for the
 //! heartbeat.
 
+use core::borrow::Borrow;
+
 use defmt::warn;
 use embassy_time::{Duration, Instant};
+use servo_core::params::ValidatedParams;
 use servo_core::protocol::{self as proto, can, DriveCommand, DriveFrame, ParamStore, RequestFrame, Server, StreamPoint};
 
 /// No CAN setpoint frame for this long: the next one may restart the
@@ -29,12 +32,12 @@ impl CanStream {
     /// then this leg's slot goes the way of `Request::Stream` (the server's
     /// stream checks), a stop frame naming this leg the way of
     /// `DriveCommand::Stop`.
-    pub fn receive<D: proto::DriveAccess, S: ParamStore>(
+    pub fn receive<P: Borrow<ValidatedParams>, D: proto::DriveAccess, S: ParamStore>(
         &mut self,
         id: u16,
         data: &[u8],
         leg: u32,
-        server: &mut Server,
+        server: &mut Server<P>,
         drive: &mut D,
         store: &mut S,
     ) {
