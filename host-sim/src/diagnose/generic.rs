@@ -1,6 +1,6 @@
 //! Generic structures for what no library effect explains: a pure delay,
 //! a lightly damped resonance, a gain drifting with time, a constant
-//! unmeasured force, a count loss of the motor-side position. Each is a shape with one or two parameters on a grid
+//! unmeasured force. Each is a shape with one or two parameters on a grid
 //! and a linear amplitude, fitted on the training remainder of the primary
 //! channel and scored on the held-out remainder, like the library. None is
 //! built from the channel's own measured output: the delay and the drift
@@ -37,7 +37,7 @@ pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
 /// One generic structure fitted and scored.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct GenericFit {
-    /// `delay`, `resonance`, `gain_drift`, `constant_force`, `count_loss`.
+    /// `delay`, `resonance`, `gain_drift`, `constant_force`.
     pub class: String,
     /// The channel it is fitted and scored on.
     pub channel: String,
@@ -216,97 +216,20 @@ pub fn fit_all(
     rem_h: &Remainder,
     nominal: &Nominal,
 ) -> Vec<GenericFit> {
-    // The position channel's remainder without the rig's own axial mode.
-    let rm = rod_mode(train, rem_t, held, rem_h, nominal);
-    let (pt, ph) = rm.as_ref().map_or((rem_t, rem_h), |(a, b)| (a, b));
     let mut out: Vec<GenericFit> = [TORQUE, POSITION]
         .into_iter()
         .flat_map(|c| {
             let mut wc = [0.0; NCH];
             wc[c] = 1.0;
             let before = super::fit::gap(held, None, &wc);
-            if c == POSITION {
-                fit(train, pt, held, ph, nominal, c, before)
-            } else {
-                fit(train, rem_t, held, rem_h, nominal, c, before)
+            match (c == POSITION).then(|| rod_mode(train, rem_t, held, rem_h, nominal)).flatten() {
+                Some((rt, rh)) => fit(train, &rt, held, &rh, nominal, c, before),
+                None => fit(train, rem_t, held, rem_h, nominal, c, before),
             }
         })
         .collect();
-    if let Some(g) = count_loss(train, pt, held, ph, nominal) {
-        out.push(g);
-    }
     out.sort_by(|a, b| b.remainder_shrink_pct.total_cmp(&a.remainder_shrink_pct));
     out
-}
-
-/// A count loss: the motor-side position (encoder) loses or gains counts
-/// and keeps the error, so the position channel (scale − motor side) steps
-/// and stays, with no torque behind it (a force would load the motor: the
-/// disturbance). Piecewise constant between change points of the position
-/// remainder alone, with the disturbance's held-out discipline (threshold
-/// chosen on training; on the held-out part the change times are found
-/// there and the levels cross-validated in time). Steps that sit at the
-/// logged motion's events (`disturbance::LOCK_TOL_S`, significant against
-/// chance) are the seal's held friction at stops — the nominal's floor —
-/// and name nothing. Parameters: the number of held-out steps, the median
-/// step in m and, with the rig's physics, in motor angle.
-fn count_loss(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Remainder, nominal: &Nominal) -> Option<GenericFit> {
-    use super::disturbance::{self as dist, Levels};
-    use super::events;
-    if !train.iter().any(|s| s.r[POSITION].is_some()) {
-        return None;
-    }
-    let pos_only = |rem: &Remainder| -> Remainder {
-        rem.iter()
-            .map(|r| std::array::from_fn(|c| if c == POSITION { r[c].clone() } else { None }))
-            .collect()
-    };
-    let (rt, rh) = (pos_only(rem_t), pos_only(rem_h));
-    let mut use_ch = [false; NCH];
-    use_ch[POSITION] = true;
-    let mut w = [0.0; NCH];
-    w[POSITION] = 1.0;
-    let base_t = dist::gap(train, &rt, None, &w);
-    let (k, after_t) = dist::THRESHOLDS
-        .iter()
-        .map(|k| {
-            let p = dist::predict(train, &rt, *k, &use_ch, Levels::PerChannel, nominal, &w).0;
-            (*k, dist::gap(train, &rt, Some(&p), &w))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    let (pred, steps, levels) = dist::predict(held, &rh, k, &use_ch, Levels::PerChannel, nominal, &w);
-    let n_steps: usize = steps.iter().map(Vec::len).sum();
-    if n_steps == 0 {
-        return None;
-    }
-    let (lk, ch) = events::locked_share(held, &steps, &events::signal_events(held), dist::LOCK_TOL_S);
-    if lk >= dist::LOCKED_RATIO * ch && lk - ch >= dist::LOCKED_EXCESS_POINTS && events::lock_significant(&steps, lk, ch, dist::LOCK_ALPHA) {
-        return None;
-    }
-    let after_h = dist::gap(held, &rh, Some(&pred), &w);
-    let mut jumps: Vec<f64> = levels
-        .windows(2)
-        .filter(|v| v[0].run == v[1].run)
-        .map(|v| (v[1].level - v[0].level).abs())
-        .collect();
-    jumps.sort_by(f64::total_cmp);
-    let step_m = jumps.get(jumps.len() / 2).copied().unwrap_or(0.0);
-    let mut params = std::collections::BTreeMap::new();
-    params.insert("steps".to_string(), n_steps as f64);
-    params.insert("step_m".to_string(), step_m);
-    if let Nominal::Physics(p) = nominal {
-        params.insert("lost_angle_rad".to_string(), step_m / p.k);
-    }
-    let mut wc = [0.0; NCH];
-    wc[POSITION] = 1.0;
-    Some(GenericFit {
-        class: "count_loss".into(),
-        channel: super::residual::CHANNELS[POSITION].into(),
-        params,
-        primary_shrink_pct: shrink(super::fit::gap(held, None, &wc), after_h),
-        remainder_shrink_pct: shrink(dist::gap(held, &rh, None, &w), after_h),
-        train_shrink_pct: shrink(base_t, after_t),
-    })
 }
 
 /// Fits every generic class on channel `c` of the training remainder and

@@ -93,7 +93,7 @@ pub struct Inputs<'a> {
 pub struct Verdict {
     /// `library_effect`, `library_group`, `disturbance`, `rig_mismatch`,
     /// `generic_structure` (none of those explains most of the gap, but a
-    /// delay, resonance, gain drift, constant force or count loss names the
+    /// delay, resonance, gain drift or constant force names the
     /// remainder), `unexplained`, `baseline_mismatch` (the nominal is unsound on what
     /// it was fitted on) or `nothing_to_find`.
     pub kind: String,
@@ -498,7 +498,6 @@ pub fn decide(i: &Inputs) -> Verdict {
                 "resonance" => "lightly damped resonance driven by the thrust",
                 "gain_drift" => "gain drifting with time",
                 "constant_force" => "constant unmeasured force",
-                "count_loss" => "count loss of the motor-side position (steps the position channel keeps, no torque behind them)",
                 other => other,
             },
             g.channel,
