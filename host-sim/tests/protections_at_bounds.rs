@@ -98,10 +98,6 @@ fn widest(base: ControlParams) -> ControlParams {
 /// is fixed (then strike it here).
 const KNOWN_GAPS: &[(&str, &str)] = &[
     (
-        "encoder_glitch",
-        "faults.encoder_max_step_counts and encoder_max_innovation_counts accept up to 1e6 counts (the Counts unit's bound): a 5000-count (half-turn) glitch passes; a jump check needs them below half a revolution",
-    ),
-    (
         "encoder_dropout_at_standstill",
         "power_stage.emf_speed_mismatch_rad_s accepts up to the rated speed (314 rad/s): a frozen encoder under a slipping load is never told from the back-EMF",
     ),
