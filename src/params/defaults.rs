@@ -198,7 +198,13 @@ impl ControlParams {
         // above the dead-time voltage error at standstill current; netted
         // over 20 ms, the dead time's wobble and a platform leg's reversals
         // cancel (10 ms tripped a streamed platform leg falsely).
-        stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05, leg_index: 0, can_termination: false },
+        stream: StreamParams {
+            period_max_s: 0.01,
+            timeout_s: 0.05,
+            leg_index: 0,
+            can_termination: false,
+            velocity_mismatch_max_m_s: super::stream::VELOCITY_MISMATCH_MAX_DEFAULT_M_S,
+        },
         power_stage: PowerStageParams {
             temperature_foldback_c: 80.0,
             temperature_trip_c: 100.0,

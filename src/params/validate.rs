@@ -216,6 +216,7 @@ const RULES: &[Rule] = &[
     positive!(power_stage.emf_speed_mismatch_rad_s),
     positive!(power_stage.emf_mismatch_time_s),
     positive!(stream.period_max_s),
+    positive!(stream.velocity_mismatch_max_m_s),
 ];
 
 /// Runs [`RULES`] over `p`: the first leaf that fails, and why.
@@ -299,6 +300,15 @@ impl ControlParams {
         if e.counts_per_rev > 32_768 {
             // The core unwraps a 16-bit counter: one revolution must fit in half its range.
             return Err(ParamError { leaf: leaf!(encoder.counts_per_rev), reason: Reason::CountsPerRevTooHigh });
+        }
+        // A jump of half a turn or more in one period cannot be told from
+        // the other way round: a bound that wide checks nothing.
+        let half_turn = e.counts_per_rev / 2;
+        if self.faults.encoder_max_step_counts >= half_turn {
+            return Err(ParamError { leaf: leaf!(faults.encoder_max_step_counts), reason: Reason::EncoderBoundNotBelowHalfTurn });
+        }
+        if !(self.faults.encoder_max_innovation_counts < half_turn as f32) {
+            return Err(ParamError { leaf: leaf!(faults.encoder_max_innovation_counts), reason: Reason::EncoderBoundNotBelowHalfTurn });
         }
         if e.direction != 1 && e.direction != -1 {
             return Err(ParamError { leaf: leaf!(encoder.direction), reason: Reason::MustBeOneOrMinusOne });
@@ -424,6 +434,9 @@ impl ControlParams {
         }
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
             return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
+        }
+        if !(self.stream.velocity_mismatch_max_m_s <= 0.5 * self.trajectory.max_velocity_m_s) {
+            return Err(ParamError { leaf: leaf!(stream.velocity_mismatch_max_m_s), reason: Reason::MismatchAboveHalfVelocity });
         }
         if self.stream.leg_index >= super::stream::LEGS as u32 {
             return Err(ParamError { leaf: leaf!(stream.leg_index), reason: Reason::NoSuchLegSlot });
