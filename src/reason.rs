@@ -157,6 +157,10 @@ reasons! {
     ObserverShiftBeyondBound = "prediction beyond control.faults.observer_shift_max_m in the trained range",
     ObserverNoUpload = "no upload begun (send Begin first)",
     ObserverWordMissing = "words missing: a chunk was not received",
+
+    // ---- a stream's agreement with itself (`protocol::server`) ----
+    VelocityDisagreesWithSteps = "velocity_m_s disagrees with the position steps over the drive's clock (averaged over control.stream.timeout_s) by more than control.stream.velocity_mismatch_max_m_s: a velocity column in other units, or points recorded at another rate than they arrive",
+    MismatchAboveHalfVelocity = "must be <= half of trajectory.max_velocity_m_s, or a stream whose velocity says rest while it moves at full speed passes",
 }
 
 impl core::fmt::Display for Reason {

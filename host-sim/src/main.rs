@@ -80,6 +80,10 @@ enum Cmd {
         family: Option<PathBuf>,
     },
     Train(host_sim::trainer::TrainArgs),
+    /// Turn the drive's own logs (telemetry CSV, a logger's CSV with the
+    /// linear scale) into the trainer's dataset: runs and directions cut
+    /// automatically, refused naming what a log lacks.
+    DatasetFromLogs(host_sim::trainer::from_logs::FromLogsArgs),
     /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
@@ -228,6 +232,7 @@ fn main() -> Result<()> {
             power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
+        Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Tune(args) => host_sim::tuning::cli::run(args),

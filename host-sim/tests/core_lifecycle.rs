@@ -79,3 +79,41 @@ fn an_encoder_fault_forgets_the_commutation_of_an_incremental_encoder() {
     assert!(!c.faults().is_empty());
     assert!(!c.readiness().contains(Readiness::COMMUTATED) && !c.readiness().contains(Readiness::HOMED));
 }
+
+/// A rotor resting on an encoder count edge toggles between two counts as
+/// the current ripple shakes it by micro-radians: the speed estimate reads
+/// one count per position period (above the settle speed), yet the rotor is
+/// still. Commutation must settle and start its sweep, not time out; a
+/// rotor that really moves (two counts a period) must not settle.
+#[test]
+fn commutation_settles_on_a_rotor_toggling_between_two_counts() {
+    use servo_core::lifecycle::{Commutation, CommutationInput};
+    let p = ControlParams::DEFAULT;
+    let dt = p.position_period_s();
+    let run = |step_counts: f32| {
+        let mut c = Commutation::new();
+        let ticks = ((p.commutation.ramp_s + p.commutation.settle_timeout_s) / dt) as usize + 10;
+        for k in 0..ticks {
+            // Before the ramp ends the rotor rests; then it toggles (or walks).
+            let (x, v) = match k % 2 {
+                0 => (0.0, -step_counts / dt),
+                _ => (step_counts, step_counts / dt),
+            };
+            let x = if step_counts > 1.0 { step_counts * k as f32 } else { x };
+            let v = if step_counts > 1.0 { step_counts / dt } else { v };
+            let input = CommutationInput { position_counts: x, counts_in_turn: x, speed_counts_s: v, load_hint_q_a: 0.0 };
+            let out = c.update(&p, &input, dt);
+            if out.angle_rad != 0.0 {
+                return Ok(k);
+            }
+            if let Some(done) = out.done {
+                return Err(format!("{done:?} at tick {k}"));
+            }
+        }
+        Err("neither swept nor failed".into())
+    };
+    let toggling = run(1.0);
+    assert!(toggling.is_ok(), "a rotor toggling one count never settled: {toggling:?}");
+    let moving = run(2.0);
+    assert!(moving.is_err(), "a rotor moving two counts a period settled: {moving:?}");
+}

@@ -62,3 +62,36 @@ fn one_client_controls_the_others_read_and_are_refused_by_name() {
     stop.store(true, Ordering::Relaxed);
     h.join().unwrap().unwrap();
 }
+
+#[test]
+fn watch_draws_the_mode_beside_the_controlling_client_and_takes_no_control() {
+    let mut o = DriveOptions::new(RigConfig::nominal().unwrap());
+    o.pace = Pace::Fast;
+    o.commissioned = true;
+    let (addr, stop, h) = drive::spawn_local(o).unwrap();
+    let ep = Endpoint::Tcp(addr.to_string());
+    let mut control = Client::connect(&ep).unwrap();
+    control.ask(Request::Command(DriveCommand::Enable)).unwrap();
+    host_sim::tool::test::wait_running(&mut control).unwrap();
+    let mut watcher = Client::connect(&ep).unwrap();
+    let screen = |t: &ratatui::Terminal<ratatui::backend::TestBackend>| -> String {
+        t.backend().buffer().content().iter().map(|c| c.symbol()).collect()
+    };
+    let mut term = ratatui::Terminal::new(ratatui::backend::TestBackend::new(100, 30)).unwrap();
+    let run = host_sim::tool::view::watch_on(&mut term, &mut watcher, 20.0, 0.3, false).unwrap();
+    // One status request per frame, each drawn: the frame count and the
+    // intervals agree, whatever the host's timing.
+    assert!(run.frames >= 2 && run.intervals_s.len() == run.frames - 1, "{run:?}");
+    let s = screen(&term);
+    assert!(s.contains("Running") && s.contains("position"), "{s}");
+    // A fault shows by name in the next frame; the watcher never took
+    // control: the controlling client still commands.
+    control.ask(Request::Command(DriveCommand::Disable)).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    host_sim::tool::view::watch_on(&mut term, &mut watcher, 20.0, 0.1, false).unwrap();
+    assert!(!screen(&term).contains("Running"), "{}", screen(&term));
+    assert!(matches!(control.request(Request::Command(DriveCommand::Enable)).unwrap(), Reply::Command(_)));
+    drop((control, watcher));
+    stop.store(true, Ordering::Relaxed);
+    h.join().unwrap().unwrap();
+}

@@ -217,6 +217,25 @@ fn a_stream_that_jumps_beyond_the_speed_limit_is_refused_at_its_row() {
 }
 
 #[test]
+fn rows_recorded_at_100_hz_sent_at_the_drives_1_khz_are_refused_by_the_drive_at_their_row_with_the_figure() {
+    // 20 mm/s at 100 Hz: 0.2 mm a row, within the jump bound at 1 ms a
+    // frame, but ten times the speed the velocity column states. The
+    // tool's own check would refuse the file before sending (the drive
+    // says it expects 1 kHz); sent anyway, the drive refuses it itself.
+    let rows: Vec<stream::Row> = (0..300)
+        .map(|k| stream::Row { t_s: k as f64 * 0.01, position_m: 0.25 + 0.02 * k as f64 * 0.01, velocity_m_s: 0.02, force_n: None })
+        .collect();
+    let d = Drive::start(None);
+    let mut c = d.connect();
+    enabled(&mut c);
+    let r = stream::send(&mut c, &rows, false).unwrap();
+    println!("refusals: {:?}", r.grouped());
+    let (row, why) = r.refusals.first().expect("refused by the drive");
+    assert!(*row > 1 && *row <= 50, "row {row}: {why}");
+    assert!(why.contains("velocity_m_s disagrees with the position steps") && why.contains("m/s against 0.0500 m/s"), "{why}");
+}
+
+#[test]
 fn stream_csv_errors_name_file_row_and_field() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("bad.csv");

@@ -157,12 +157,28 @@ fn open_phase_monitor_judges_only_windows_with_enough_demand() {
         verdict = m.update(&f, n, abc(10.0, theta), abc(10.0, theta));
     }
     assert_eq!(verdict, Some(false));
-    // Below the demand threshold (1 A vector, mean |i| < 3 A): no verdict.
+    // Below the demand threshold (0.3 A vector, mean |i| < 1 A): no verdict.
     let mut verdict = Some(true);
     for k in 0..n {
-        verdict = m.update(&f, n, abc(1.0, 0.3 * k as f32), [0.0; 3]);
+        verdict = m.update(&f, n, abc(0.3, 0.3 * k as f32), [0.0; 3]);
     }
     assert_eq!(verdict, None);
+    // Just above the threshold (a light payload's 2 A vector) an empty
+    // phase b is seen...
+    let mut verdict = None;
+    for k in 0..n {
+        let r = abc(2.0, 0.3 * k as f32);
+        verdict = m.update(&f, n, r, [r[0], 0.0, -r[0]]);
+    }
+    assert_eq!(verdict, Some(true));
+    // ...while a phase that carries a real share of a large demand (a
+    // tenth of 10 A: a lagging loop, a slipping frame) is not empty.
+    let mut verdict = None;
+    for k in 0..n {
+        let r = abc(10.0, 0.3 * k as f32);
+        verdict = m.update(&f, n, r, [r[0], 0.1 * r[1], r[2]]);
+    }
+    assert_eq!(verdict, Some(false));
 }
 
 /// A bridge-off fault while holding the vertical rated load: until the brake

@@ -137,6 +137,9 @@ pub struct Commutation {
     phase_s: f32,
     total_s: f32,
     still_s: f32,
+    /// Where the rotor was when it last moved: a rotor within a count of
+    /// it is still, whatever the speed estimate says.
+    still_at_counts: f32,
     x0_counts: f32,
     turn0_counts: f32,
     sum_cos: f32,
@@ -175,6 +178,7 @@ impl Commutation {
             phase_s: 0.0,
             total_s: 0.0,
             still_s: 0.0,
+            still_at_counts: 0.0,
             x0_counts: 0.0,
             turn0_counts: 0.0,
             sum_cos: 0.0,
@@ -235,12 +239,21 @@ impl Commutation {
 
     /// True once the rotor has been slower than the settle speed for
     /// `settle_s`; fails the step after `settle_timeout_s`.
+    ///
+    /// A rotor resting on a count edge toggles between two counts as the
+    /// current ripple and the brake's twist shake it by micro-radians; one
+    /// count in one position period reads as a speed above the settle
+    /// speed (0.63 rad/s at 10000 counts and 1 kHz). Such a rotor is still:
+    /// within a count of where it last moved, the estimate is the encoder's
+    /// resolution, not motion.
     fn settled(&mut self, p: &ControlParams, s: &CommutationInput, dt_s: f32, counts_per_rad: f32) -> bool {
         let c = &p.commutation;
-        if s.speed_counts_s.abs() < c.settle_speed_rad_s * counts_per_rad {
+        let slow = s.speed_counts_s.abs() < c.settle_speed_rad_s * counts_per_rad;
+        if slow || (s.position_counts - self.still_at_counts).abs() <= 1.0 {
             self.still_s += dt_s;
         } else {
             self.still_s = 0.0;
+            self.still_at_counts = s.position_counts;
         }
         if self.still_s >= c.settle_s {
             return true;

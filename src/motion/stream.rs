@@ -43,6 +43,19 @@ pub fn torque_path_delay_s(p: &ControlParams) -> f32 {
     }
 }
 
+/// The running disagreement between a stream's position steps and its
+/// velocities, metres, after one more point: the step less what the mean
+/// of the two points' velocities covers over `interval_s` (the drive's
+/// clock between their arrivals), added to what was there, which decays
+/// over `window_s`. Over `window_s` it is the mean disagreement in m/s. A
+/// point that arrives late by δ adds `−v·δ` and the next, early by as
+/// much, takes it back: bunched arrivals cancel; a stream recorded at
+/// another rate, or a velocity in other units, builds up.
+pub fn step_disagreement_m(previous_m: f32, step_m: f32, mean_velocity_m_s: f32, interval_s: f32, window_s: f32) -> f32 {
+    let keep = if window_s > 0.0 { 1.0 - crate::math::clamp(interval_s / window_s, 0.0, 1.0) } else { 0.0 };
+    previous_m * keep + (step_m - mean_velocity_m_s * interval_s)
+}
+
 /// One streamed point.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Setpoint {

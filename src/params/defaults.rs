@@ -131,11 +131,16 @@ impl ControlParams {
             // near the 5 mm following trip means the load is winning.
             stop_following_error_m: 0.003,
             // 2 ms is a tenth of an electrical turn at rated speed and two
-            // windows fit in the 5 ms the open-phase scenario allows; 3 A
-            // mean is a quarter of rated current, far above sensor noise;
-            // an open lead carries noise only (< 5 %), a healthy phase 100 %.
+            // windows fit in the 5 ms the open-phase scenario allows. 1 A
+            // mean is met within two windows of an open lead by the lightest
+            // payload (the speed loop asks more as the torque falls); an
+            // open lead carries noise only (mean |i| ≈ 0.8 σ = 0.024 A at the
+            // ESC1's 0.03 A), far under the 0.2 A (20 % of 1 A, 7 ADC codes)
+            // an empty phase may carry. A loop that cannot make its current
+            // (a frame that slips under a frozen encoder) still leaves more
+            // than that in a phase asked for less than 1 A.
             open_phase_window_s: 0.002,
-            open_phase_current_a: 3.0,
+            open_phase_current_a: 1.0,
             open_phase_ratio: 0.2,
         },
         load_estimate: LoadEstimateParams { filter_hz: 5.0 },
@@ -193,7 +198,13 @@ impl ControlParams {
         // above the dead-time voltage error at standstill current; netted
         // over 20 ms, the dead time's wobble and a platform leg's reversals
         // cancel (10 ms tripped a streamed platform leg falsely).
-        stream: StreamParams { period_max_s: 0.01, timeout_s: 0.05, leg_index: 0, can_termination: false },
+        stream: StreamParams {
+            period_max_s: 0.01,
+            timeout_s: 0.05,
+            leg_index: 0,
+            can_termination: false,
+            velocity_mismatch_max_m_s: super::stream::VELOCITY_MISMATCH_MAX_DEFAULT_M_S,
+        },
         power_stage: PowerStageParams {
             temperature_foldback_c: 80.0,
             temperature_trip_c: 100.0,

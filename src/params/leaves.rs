@@ -168,6 +168,7 @@ leaves! {
     stream.timeout_s,
     stream.leg_index,
     stream.can_termination,
+    stream.velocity_mismatch_max_m_s,
     thermal.continuous_current_a,
     thermal.time_constant_s,
     thermal.foldback_start,

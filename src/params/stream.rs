@@ -31,4 +31,22 @@ pub struct StreamParams {
     /// TOML file: false.
     #[serde(default)]
     pub can_termination: bool,
+    /// How far the points' velocity may disagree with their position
+    /// steps, m/s, averaged over `timeout_s` on the drive's clock (so one
+    /// point bunched with its neighbour or late by an interval moves the
+    /// average by at most `v·interval/timeout_s`). A velocity column in
+    /// other units, or points recorded at 100 Hz arriving at 1 kHz (ten
+    /// times too fast), disagree by far more; the point is refused and
+    /// named. At most half the top stream speed. Absent from a TOML file:
+    /// 0.05 m/s.
+    #[serde(default = "velocity_mismatch_max_default")]
+    pub velocity_mismatch_max_m_s: f32,
+}
+
+/// A quarter of the top stream speed (0.2 m/s): one point late by a whole
+/// 10 ms interval at 0.2 m/s moves the 50 ms average by 0.04 m/s.
+pub const VELOCITY_MISMATCH_MAX_DEFAULT_M_S: f32 = 0.05;
+
+fn velocity_mismatch_max_default() -> f32 {
+    VELOCITY_MISMATCH_MAX_DEFAULT_M_S
 }

@@ -216,6 +216,7 @@ const RULES: &[Rule] = &[
     positive!(power_stage.emf_speed_mismatch_rad_s),
     positive!(power_stage.emf_mismatch_time_s),
     positive!(stream.period_max_s),
+    positive!(stream.velocity_mismatch_max_m_s),
 ];
 
 /// Runs [`RULES`] over `p`: the first leaf that fails, and why.
@@ -424,6 +425,9 @@ impl ControlParams {
         }
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
             return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
+        }
+        if !(self.stream.velocity_mismatch_max_m_s <= 0.5 * self.trajectory.max_velocity_m_s) {
+            return Err(ParamError { leaf: leaf!(stream.velocity_mismatch_max_m_s), reason: Reason::MismatchAboveHalfVelocity });
         }
         if self.stream.leg_index >= super::stream::LEGS as u32 {
             return Err(ParamError { leaf: leaf!(stream.leg_index), reason: Reason::NoSuchLegSlot });

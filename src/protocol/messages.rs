@@ -347,6 +347,11 @@ pub enum Error {
     /// Observer weights are not taken by this drive's store, or the store
     /// could not give back what it wrote.
     ObserverStore { reason: Text },
+    /// A stream point whose figures disagree with the stream so far
+    /// (`VelocityDisagreesWithSteps`): what was measured, the bound it
+    /// passed (both m/s) and the interval since the previous point on the
+    /// drive's clock, s.
+    StreamDisagrees { reason: Reason, measured_m_s: f32, bound_m_s: f32, interval_s: f32 },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]

@@ -19,6 +19,7 @@ use super::params::PARAM_COUNT;
 use crate::params::leaves::{self, LeafError};
 use crate::capture::CaptureRequest;
 use crate::params::Value;
+use crate::motion::stream::step_disagreement_m;
 use crate::reason::Reason;
 use crate::test_signals::TestSignal;
 use super::{PARAMS_SCHEMA_HASH, SCHEMA_HASH};
@@ -44,6 +45,9 @@ const STREAM_SLACK_PERIODS: f32 = 2.0;
 struct LastPoint {
     time_s: f32,
     position_m: f32,
+    velocity_m_s: f32,
+    /// `motion::stream::step_disagreement_m` after this point.
+    disagreement_m: f32,
 }
 
 /// The protocol server: telemetry configuration and the stream's last
@@ -344,27 +348,38 @@ impl<P: Borrow<ValidatedParams>> Server<P> {
             return Err(stream_error(Reason::BeyondMaxVelocity));
         }
         let period_max = p.stream.period_max_s;
-        let (from_m, interval_s) = match self.last_point {
+        let (from_m, interval_s, disagreement_m) = match self.last_point {
             Some(last) => {
                 let gap = t.time_s - last.time_s;
                 if gap > p.stream.timeout_s {
                     self.last_point = None;
                     return Err(stream_error(Reason::StreamGap));
                 }
-                (last.position_m, crate::math::clamp(gap, 0.0, period_max))
+                let window_s = p.stream.timeout_s;
+                let mean_v = 0.5 * (sp.velocity_m_s + last.velocity_m_s);
+                let d = step_disagreement_m(last.disagreement_m, sp.position_m - last.position_m, mean_v, gap, window_s);
+                (last.position_m, crate::math::clamp(gap, 0.0, period_max), d)
             }
             // The first point is reached from the reference over the
-            // longest interval.
-            None => (t.position_reference_m, period_max),
+            // longest interval; it has no step to agree with.
+            None => (t.position_reference_m, period_max, 0.0),
         };
         let reach = v_max * (interval_s + STREAM_SLACK_PERIODS * p.position_period_s());
         if !((sp.position_m - from_m).abs() <= reach) {
             return Err(stream_error(Reason::StreamJump));
         }
+        let measured_m_s = disagreement_m / p.stream.timeout_s;
+        let bound_m_s = p.stream.velocity_mismatch_max_m_s;
+        if !(measured_m_s.abs() <= bound_m_s) {
+            // Not taken: the next point is checked against the last one
+            // taken, and the stream, starved, decelerates to rest.
+            let interval_s = self.last_point.map_or(0.0, |l| t.time_s - l.time_s);
+            return Err(Error::StreamDisagrees { reason: Reason::VelocityDisagreesWithSteps, measured_m_s, bound_m_s, interval_s });
+        }
         let cmd = Command::Stream { position_m: sp.position_m, velocity_m_s: sp.velocity_m_s, force_n: sp.force_n };
         match drive.command(cmd) {
             Ok(_) => {
-                self.last_point = Some(LastPoint { time_s: t.time_s, position_m: sp.position_m });
+                self.last_point = Some(LastPoint { time_s: t.time_s, position_m: sp.position_m, velocity_m_s: sp.velocity_m_s, disagreement_m });
                 Ok(())
             }
             Err(e) => {

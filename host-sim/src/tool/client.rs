@@ -278,6 +278,10 @@ pub fn describe(e: &Error) -> String {
         ),
         Error::ObserverStore { reason } => format!("observer weights: {reason}; the running weights are unchanged"),
         Error::Busy => "busy with a request of this kind; retry".into(),
+        Error::StreamDisagrees { reason, measured_m_s, bound_m_s, interval_s } => format!(
+            "stream: {reason}: {measured_m_s:+.4} m/s against {bound_m_s:.4} m/s ({:.3} ms since the last point taken); check the velocity column's units and that the CSV's rate is the one the points are sent at (`drive info` shows the drive's stream period)",
+            interval_s * 1e3
+        ),
         Error::ControlledByAnotherClient => "busy: controlled by another client; this one may only read (info, status, param get/list, watch, telemetry) until that one disconnects".into(),
     }
 }

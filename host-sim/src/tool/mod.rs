@@ -14,6 +14,7 @@ pub mod stream;
 pub mod stream_loss;
 pub mod test;
 pub mod view;
+pub mod watch_bench;
 
 use crate::config::RigConfig;
 use crate::drive::{self, DriveOptions, Pace};
@@ -225,6 +226,19 @@ pub enum DriveCmd {
         #[arg(long)]
         params: Option<PathBuf>,
     },
+    /// How often `watch` refreshes beside a streaming client: a simulated
+    /// drive in real time, the view drawn off-screen.
+    BenchWatch {
+        #[arg(long, default_value = "out/bench-watch")]
+        out: PathBuf,
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// The rate `watch` is asked for, Hz (its default).
+        #[arg(long, default_value_t = 20.0)]
+        rate_hz: f64,
+        #[arg(long, default_value_t = 3.0)]
+        seconds: f64,
+    },
 }
 
 #[derive(Subcommand)]
@@ -294,6 +308,14 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
         DriveCmd::BenchStream { out, params } => {
             let s = bench::run(&RigConfig::load_or_nominal(params.as_ref())?, &out)?;
             println!("{}", serde_json::to_string_pretty(&s)?);
+            Ok(())
+        }
+        DriveCmd::BenchWatch { out, params, rate_hz, seconds } => {
+            let s = watch_bench::run(&RigConfig::load_or_nominal(params.as_ref())?, &out, rate_hz, seconds)?;
+            println!("{}", serde_json::to_string_pretty(&s)?);
+            if s["refresh_ok"] != serde_json::Value::Bool(true) {
+                bail!("`watch` refreshed at {} Hz, below {} Hz: {}", s["refresh_hz"], watch_bench::REFRESH_MIN_HZ, out.join("summary.json").display());
+            }
             Ok(())
         }
         cmd => {
@@ -457,7 +479,7 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             cap.write_csv(&out)?;
             println!("{} signals × {} samples at {:.1} Hz → {}", cap.names.len(), cap.len(), 1.0 / cap.dt_s, out.display());
         }
-        DriveCmd::Serve { .. } | DriveCmd::Log { .. } | DriveCmd::BenchStream { .. } | DriveCmd::BenchStreamLoss { .. } => {
+        DriveCmd::Serve { .. } | DriveCmd::Log { .. } | DriveCmd::BenchStream { .. } | DriveCmd::BenchStreamLoss { .. } | DriveCmd::BenchWatch { .. } => {
             bail!("not a command for a connected drive")
         }
     }

@@ -150,30 +150,56 @@ pub fn telemetry_csv(c: &mut Client, path: &Path, rate_hz: u16, seconds: f64) ->
 /// until `q` or Esc (or `seconds`, if > 0). Read-only: works beside a
 /// controlling client.
 pub fn watch(c: &mut Client, rate_hz: f64, seconds: f64) -> Result<usize> {
-    use ratatui::crossterm::event::{self, Event, KeyCode};
-    use ratatui::layout::{Constraint, Layout};
-    use ratatui::style::{Color, Style};
-    use ratatui::widgets::{Block, Borders, Row, Sparkline, Table};
     if !std::io::IsTerminal::is_terminal(&std::io::stdout()) {
         bail!("`watch` needs a terminal; for a record, use `telemetry --csv FILE`, for one look `status`");
     }
     let mut terminal = ratatui::try_init().context("opening the terminal for `watch`")?;
+    let result = watch_on(&mut terminal, c, rate_hz, seconds, true);
+    ratatui::restore();
+    result.map(|r| r.frames)
+}
+
+/// What a `watch` run drew.
+#[derive(Clone, Debug, Default)]
+pub struct WatchRun {
+    pub frames: usize,
+    /// Wall-clock seconds from the first status request to the last frame.
+    pub seconds: f64,
+    /// Seconds from one frame drawn to the next.
+    pub intervals_s: Vec<f64>,
+}
+
+/// [`watch`] on any ratatui backend (the bench and the tests draw into a
+/// `TestBackend`); `keys`: q or Esc end it (a terminal's), else it sleeps
+/// out each period.
+pub fn watch_on<B: ratatui::backend::Backend>(
+    terminal: &mut ratatui::Terminal<B>,
+    c: &mut Client,
+    rate_hz: f64,
+    seconds: f64,
+    keys: bool,
+) -> Result<WatchRun> {
+    use ratatui::crossterm::event::{self, Event, KeyCode};
+    use ratatui::layout::{Constraint, Layout};
+    use ratatui::style::{Color, Style};
+    use ratatui::widgets::{Block, Borders, Row, Sparkline, Table};
     let period = Duration::from_secs_f64(1.0 / rate_hz.max(1.0));
     let t0 = Instant::now();
-    let mut frames = 0usize;
+    let mut run = WatchRun::default();
+    let mut last_frame: Option<Instant> = None;
     let mut history: Vec<u64> = Vec::new();
-    let result = (|| -> Result<()> {
-        loop {
-            let tick = Instant::now();
-            let s = status(c)?;
-            history.push((s.current_q_a.abs() * 100.0) as u64);
-            if history.len() > 200 {
-                history.remove(0);
-            }
-            let lines = status_lines(&s, None);
-            let elapsed = t0.elapsed().as_secs_f64();
-            let rate = if elapsed > 0.0 { frames as f64 / elapsed } else { 0.0 };
-            terminal.draw(|f| {
+    loop {
+        let tick = Instant::now();
+        let s = status(c)?;
+        history.push((s.current_q_a.abs() * 100.0) as u64);
+        if history.len() > 200 {
+            history.remove(0);
+        }
+        let lines = status_lines(&s, None);
+        let elapsed = t0.elapsed().as_secs_f64();
+        let rate = if elapsed > 0.0 { run.frames as f64 / elapsed } else { 0.0 };
+        terminal
+            .draw(|f| {
                 let [top, bottom] = Layout::vertical([Constraint::Min(15), Constraint::Length(6)]).areas(f.area());
                 let rows = lines.iter().map(|(k, v)| {
                     let style = if k == "faults" && s.faults != 0 { Style::default().fg(Color::Red) } else { Style::default() };
@@ -184,21 +210,29 @@ pub fn watch(c: &mut Client, rate_hz: f64, seconds: f64) -> Result<usize> {
                 f.render_widget(table, top);
                 let spark = Sparkline::default().block(Block::default().borders(Borders::ALL).title(" |i_q| (cA) ")).data(&history);
                 f.render_widget(spark, bottom);
-            })?;
-            frames += 1;
-            if seconds > 0.0 && t0.elapsed().as_secs_f64() >= seconds {
-                return Ok(());
-            }
-            let left = period.saturating_sub(tick.elapsed());
+            })
+            .map_err(|e| anyhow::anyhow!("drawing the view: {e}"))?;
+        let now = Instant::now();
+        if let Some(l) = last_frame {
+            run.intervals_s.push((now - l).as_secs_f64());
+        }
+        last_frame = Some(now);
+        run.frames += 1;
+        run.seconds = t0.elapsed().as_secs_f64();
+        if seconds > 0.0 && run.seconds >= seconds {
+            return Ok(run);
+        }
+        let left = period.saturating_sub(tick.elapsed());
+        if keys {
             if event::poll(left)? {
                 if let Event::Key(k) = event::read()? {
                     if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) {
-                        return Ok(());
+                        return Ok(run);
                     }
                 }
             }
+        } else {
+            std::thread::sleep(left);
         }
-    })();
-    ratatui::restore();
-    result.map(|_| frames)
+    }
 }

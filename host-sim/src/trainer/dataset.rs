@@ -1,11 +1,17 @@
 //! Observer datasets: CSV loading with validation, and splits by run.
 //!
 //! One CSV file with a `run_id` column, or a folder of CSV files (each may hold
-//! one or more runs). Header names are exact:
+//! one or more runs). Header names are exact. Required: the run, its
+//! direction, the time, the network's inputs and its target:
 //!
-//! `run_id,direction,tilt_swing_deg,payload_scale,time_s,motor_speed_rad_s,
-//! nut_speed_m_s,nut_displacement_m,load_force_n,terminal_length_m,
-//! motor_side_position_m,terminal_error_m`
+//! `run_id,direction,time_s,motor_speed_rad_s,nut_speed_m_s,
+//! nut_displacement_m,load_force_n,terminal_error_m`
+//!
+//! Optional: `terminal_length_m` and `motor_side_position_m` (the length
+//! model's target; without `terminal_error_m` the error is their
+//! difference), `tilt_swing_deg` and `payload_scale` (the simulator's
+//! labels, reported only). `host-sim dataset-from-logs` writes such a file
+//! from the drive's own logs.
 //!
 //! Extra columns are ignored; a missing one, an empty or non-finite value, an
 //! unknown direction, a run that changes direction or appears in two files, or
@@ -29,8 +35,13 @@ pub const N_INPUTS: usize = 4;
 pub const INPUT_COLUMNS: [&str; N_INPUTS] =
     ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n"];
 
-/// Every column a dataset file must have.
-pub const REQUIRED_COLUMNS: [&str; 12] = [
+/// The columns a dataset file must have (the target, `terminal_error_m`,
+/// may instead come from `terminal_length_m − motor_side_position_m`).
+pub const REQUIRED_COLUMNS: [&str; 7] =
+    ["run_id", "direction", "time_s", "motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n"];
+
+/// Every column the trainer reads, and writes (NaN where a label is unknown).
+pub const ALL_COLUMNS: [&str; 12] = [
     "run_id",
     "direction",
     "tilt_swing_deg",
@@ -105,6 +116,7 @@ impl ModelKind {
 pub struct Run {
     pub id: String,
     pub direction: Direction,
+    /// NaN when the file does not say (labels of simulated runs).
     pub tilt_swing_deg: f64,
     pub payload_scale: f64,
     /// File the run came from and the line of its first sample (1-based,
@@ -114,6 +126,7 @@ pub struct Run {
     pub time_s: Vec<f64>,
     /// Inputs in [`INPUT_COLUMNS`] order.
     pub inputs: Vec<[f64; N_INPUTS]>,
+    /// NaN when the file has neither the length nor the motor side.
     pub terminal_length_m: Vec<f64>,
     pub motor_side_position_m: Vec<f64>,
     pub terminal_error_m: Vec<f64>,
@@ -209,23 +222,25 @@ impl Dataset {
 
     /// Writes the dataset as one CSV file in the format [`Dataset::load`] reads.
     pub fn write_csv(&self, path: &Path) -> Result<()> {
+        // Unknown optional values are left empty.
+        let label = |v: f64| if v.is_nan() { String::new() } else { format!("{v:e}") };
         let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
-        w.write_record(REQUIRED_COLUMNS)?;
+        w.write_record(ALL_COLUMNS)?;
         for r in &self.runs {
             for i in 0..r.len() {
                 let x = r.inputs[i];
                 w.write_record([
                     r.id.clone(),
                     r.direction.name().to_string(),
-                    format!("{}", r.tilt_swing_deg),
-                    format!("{}", r.payload_scale),
+                    label(r.tilt_swing_deg),
+                    label(r.payload_scale),
                     format!("{}", r.time_s[i]),
                     format!("{:e}", x[0]),
                     format!("{:e}", x[1]),
                     format!("{:e}", x[2]),
                     format!("{:e}", x[3]),
-                    format!("{:e}", r.terminal_length_m[i]),
-                    format!("{:e}", r.motor_side_position_m[i]),
+                    label(r.terminal_length_m[i]),
+                    label(r.motor_side_position_m[i]),
                     format!("{:e}", r.terminal_error_m[i]),
                 ])?;
             }
@@ -245,18 +260,21 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<()> {
         .from_path(path)
         .with_context(|| format!("opening {}", path.display()))?;
     let header = rdr.headers().with_context(|| format!("{} line 1: reading the header", path.display()))?.clone();
+    let find = |name: &str| header.iter().position(|h| h == name);
+    let missing = |name: &str| {
+        anyhow!("{} line 1: missing column '{}' (header is: {})", path.display(), name, header.iter().collect::<Vec<_>>().join(","))
+    };
     let mut col = [0usize; REQUIRED_COLUMNS.len()];
     for (slot, name) in col.iter_mut().zip(REQUIRED_COLUMNS) {
-        *slot = header.iter().position(|h| h == name).ok_or_else(|| {
-            anyhow!(
-                "{} line 1: missing column '{}' (header is: {})",
-                path.display(),
-                name,
-                header.iter().collect::<Vec<_>>().join(",")
-            )
-        })?;
+        *slot = find(name).ok_or_else(|| missing(name))?;
     }
-    let [c_run, c_dir, c_tilt, c_pay, c_time, c_w, c_v, c_x, c_f, c_len, c_motor, c_err] = col;
+    let [c_run, c_dir, c_time, c_w, c_v, c_x, c_f] = col;
+    let (c_tilt, c_pay) = (find("tilt_swing_deg"), find("payload_scale"));
+    let (c_len, c_motor, c_err) = (find("terminal_length_m"), find("motor_side_position_m"), find("terminal_error_m"));
+    if c_err.is_none() && (c_len.is_none() || c_motor.is_none()) {
+        return Err(missing("terminal_error_m")
+            .context("the target: terminal_error_m, or terminal_length_m and motor_side_position_m to take it from"));
+    }
     let mut rec = csv::StringRecord::new();
     let mut data_row = 0u64;
     loop {
@@ -282,13 +300,28 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<()> {
             }
             Ok(v)
         };
+        // An optional column may leave a row's value empty (unknown).
+        let opt = |c: Option<usize>| -> Result<f64> {
+            match c {
+                Some(c) if !rec.get(c).unwrap_or("").is_empty() => num(c),
+                _ => Ok(f64::NAN),
+            }
+        };
         let id = field(c_run)?.to_string();
         let dir_s = field(c_dir)?;
         let direction = Direction::parse(dir_s)
             .ok_or_else(|| anyhow!("{}: direction '{}' is neither Elongation nor Contraction", at(), dir_s))?;
-        let (tilt, pay, t) = (num(c_tilt)?, num(c_pay)?, num(c_time)?);
+        let (tilt, pay, t) = (opt(c_tilt)?, opt(c_pay)?, num(c_time)?);
         let x = [num(c_w)?, num(c_v)?, num(c_x)?, num(c_f)?];
-        let (len, motor, err) = (num(c_len)?, num(c_motor)?, num(c_err)?);
+        let (len, motor) = (opt(c_len)?, opt(c_motor)?);
+        let err = match c_err {
+            Some(c) => num(c)?,
+            None if len.is_nan() || motor.is_nan() => {
+                bail!("{}: terminal_length_m or motor_side_position_m is empty and there is no terminal_error_m", at())
+            }
+            None => len - motor,
+        };
+        let len = if len.is_nan() { motor + err } else { len };
         let run = runs.entry(id.clone()).or_insert_with(|| Run {
             id: id.clone(),
             direction,

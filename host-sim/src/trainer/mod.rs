@@ -15,6 +15,8 @@
 pub mod codegen;
 pub mod dataset;
 pub mod evaluate;
+pub mod from_logs;
+pub mod log_moves;
 pub mod ibas;
 pub mod network;
 pub mod optim;
@@ -238,6 +240,16 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
     let t0 = Instant::now();
     if opts.hidden.is_empty() || opts.hidden.contains(&0) {
         bail!("hidden sizes must be positive (got {:?})", opts.hidden);
+    }
+    if let Some(r) = ds.runs.iter().find(|r| r.target(opts.kind).iter().any(|v| v.is_nan())) {
+        bail!(
+            "{} line {}: run '{}' has no {} (the {} model's target): give that column, or train the error model",
+            r.source.display(),
+            r.first_line,
+            r.id,
+            opts.kind.column(),
+            opts.kind.name()
+        );
     }
     if opts.ibas.is_none() && opts.optimiser.is_none() {
         bail!("neither IBAS nor back-propagation is enabled: nothing would be trained");
