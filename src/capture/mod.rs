@@ -109,7 +109,7 @@ pub struct Capture {
     /// (decimation − 1): with decimation 1 a sampled period tests one
     /// zero and stores one.
     skip: u32,
-    skip_reload: u32,
+    skip_reload: u16,
     /// Armed or triggered: the controller's `HOOK_CAPTURE` mirrors it, so
     /// the period tests the hook byte, not this.
     recording: bool,
@@ -239,7 +239,7 @@ impl Capture {
             store: self.store,
             // The first sample in the first period after the configure.
             skip: 0,
-            skip_reload: u32::from(c.decimation) - 1,
+            skip_reload: c.decimation - 1,
             recording: true,
             write_cell: 0,
             frames_to_event: if pre_filled { u32::MAX } else { u32::from(c.pre_trigger) },
@@ -284,7 +284,7 @@ impl Capture {
             self.skip = self.skip.wrapping_sub(1);
             return false;
         }
-        self.skip = self.skip_reload;
+        self.skip = u32::from(self.skip_reload);
         true
     }
 
