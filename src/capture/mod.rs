@@ -239,7 +239,7 @@ impl Capture {
             store: self.store,
             // The first sample in the first period after the configure.
             skip: 0,
-            skip_reload: c.decimation - 1,
+            skip_reload: c.decimation.wrapping_sub(1), // ≥ 1, checked above
             recording: true,
             write_cell: 0,
             frames_to_event: if pre_filled { u32::MAX } else { u32::from(c.pre_trigger) },
