@@ -161,6 +161,9 @@ reasons! {
     // ---- a stream's agreement with itself (`protocol::server`) ----
     VelocityDisagreesWithSteps = "velocity_m_s disagrees with the position steps over the drive's clock (averaged over control.stream.timeout_s) by more than control.stream.velocity_mismatch_max_m_s: a velocity column in other units, or points recorded at another rate than they arrive",
     MismatchAboveHalfVelocity = "must be <= half of trajectory.max_velocity_m_s, or a stream whose velocity says rest while it moves at full speed passes",
+
+    // ---- a protection's bound that would check nothing ----
+    EncoderBoundNotBelowHalfTurn = "must be below half of encoder.counts_per_rev: a jump of half a turn cannot be told from one the other way",
 }
 
 impl core::fmt::Display for Reason {

@@ -84,6 +84,9 @@ enum Cmd {
     /// linear scale) into the trainer's dataset: runs and directions cut
     /// automatically, refused naming what a log lacks.
     DatasetFromLogs(host_sim::trainer::from_logs::FromLogsArgs),
+    /// The retraining route timed end to end (logs → dataset → train →
+    /// upload → verify on the simulated drive): summary.json.
+    ObserverRoute(host_sim::trainer::route::RouteArgs),
     /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
@@ -233,6 +236,7 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
+        Cmd::ObserverRoute(args) => host_sim::trainer::route::run(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Tune(args) => host_sim::tuning::cli::run(args),

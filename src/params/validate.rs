@@ -301,6 +301,15 @@ impl ControlParams {
             // The core unwraps a 16-bit counter: one revolution must fit in half its range.
             return Err(ParamError { leaf: leaf!(encoder.counts_per_rev), reason: Reason::CountsPerRevTooHigh });
         }
+        // A jump of half a turn or more in one period cannot be told from
+        // the other way round: a bound that wide checks nothing.
+        let half_turn = e.counts_per_rev / 2;
+        if self.faults.encoder_max_step_counts >= half_turn {
+            return Err(ParamError { leaf: leaf!(faults.encoder_max_step_counts), reason: Reason::EncoderBoundNotBelowHalfTurn });
+        }
+        if !(self.faults.encoder_max_innovation_counts < half_turn as f32) {
+            return Err(ParamError { leaf: leaf!(faults.encoder_max_innovation_counts), reason: Reason::EncoderBoundNotBelowHalfTurn });
+        }
         if e.direction != 1 && e.direction != -1 {
             return Err(ParamError { leaf: leaf!(encoder.direction), reason: Reason::MustBeOneOrMinusOne });
         }

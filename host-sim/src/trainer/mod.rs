@@ -17,6 +17,7 @@ pub mod dataset;
 pub mod evaluate;
 pub mod from_logs;
 pub mod log_moves;
+pub mod route;
 pub mod ibas;
 pub mod network;
 pub mod optim;
