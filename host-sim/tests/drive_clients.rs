@@ -95,3 +95,14 @@ fn watch_draws_the_mode_beside_the_controlling_client_and_takes_no_control() {
     stop.store(true, Ordering::Relaxed);
     h.join().unwrap().unwrap();
 }
+
+#[test]
+fn a_refused_request_is_named_as_the_user_typed_it() {
+    use host_sim::tool::client::request_text;
+    use servo_core::protocol::Value;
+    let kp = servo_core::protocol::params::index_of("control.speed_pi.kp").unwrap() as u16;
+    assert_eq!(request_text(&Request::ParamSet { index: kp, value: Value::F32(1e30) }), "param set control.speed_pi.kp 1e30");
+    assert_eq!(request_text(&Request::ParamSet { index: kp, value: Value::F32(0.4) }), "param set control.speed_pi.kp 0.4");
+    assert_eq!(request_text(&Request::Load), "param load");
+    assert_eq!(request_text(&Request::Command(DriveCommand::Enable)), "cmd Enable");
+}

@@ -205,7 +205,7 @@ impl Client {
 
     /// `request`, with `Reply::Error` turned into an error naming it.
     pub fn ask(&mut self, request: Request) -> Result<Reply> {
-        let what = format!("{request:?}");
+        let what = request_text(&request);
         match self.request(request)? {
             Reply::Error(e) => Err(anyhow!("{what}: refused: {}", describe(&e))),
             r => Ok(r),
@@ -251,6 +251,32 @@ pub fn param_path(index: u16) -> String {
 
 pub fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// A request as the user asked it: a parameter by its path, a command by
+/// name (the Rust form only for the rest).
+pub fn request_text(r: &Request) -> String {
+    match r {
+        Request::ParamSet { index, value } => format!("param set {} {}", param_path(*index), value_text(value)),
+        Request::ParamGet { index } => format!("param get {}", param_path(*index)),
+        Request::Command(c) => format!("cmd {c:?}"),
+        Request::Save => "param save".into(),
+        Request::Load => "param load".into(),
+        Request::Defaults => "param defaults".into(),
+        other => format!("{other:?}"),
+    }
+}
+
+fn value_text(v: &servo_core::protocol::Value) -> String {
+    use servo_core::protocol::Value as V;
+    match v {
+        V::F32(x) if *x != 0.0 && !(1e-4..1e6).contains(&x.abs()) => format!("{x:e}"),
+        V::F32(x) => format!("{x}"),
+        V::U32(x) => format!("{x}"),
+        V::I32(x) => format!("{x}"),
+        V::Bool(x) => format!("{x}"),
+        V::Variant(x) => format!("variant {x}"),
+    }
 }
 
 /// One line for a refusal: what, why, and the command to try next.

@@ -226,7 +226,7 @@ pub enum DriveCmd {
         #[arg(long)]
         params: Option<PathBuf>,
     },
-    /// How often `watch` refreshes beside a streaming client: a simulated
+    /// How often `watch` refreshes beside a controlling client: a simulated
     /// drive in real time, the view drawn off-screen.
     BenchWatch {
         #[arg(long, default_value = "out/bench-watch")]
