@@ -125,6 +125,36 @@ fn a_trigger_before_the_ring_is_full_keeps_what_there_is() {
     }
 }
 
+/// A trigger is taken when it is given: the status says so at once, with
+/// the samples kept so far as the trigger index, and a second trigger is
+/// refused; the next sample on the decimation grid is the trigger sample.
+#[test]
+fn a_command_trigger_is_taken_at_once_and_its_sample_is_the_next() {
+    let mut cl = holding();
+    let cfg = config(&[Signal::BusVoltage], 3, 100, 50, CaptureTrigger::Command);
+    cl.controller.capture_configure(&cfg).unwrap();
+    // Periods 0..=9 sampled at 0, 3, 6, 9.
+    for k in 0..10 {
+        let v = ramp_v(k);
+        cl.step_with(|s| s.bus_voltage_v = v);
+    }
+    cl.controller.capture_trigger().unwrap();
+    let st = cl.controller.capture_status();
+    assert_eq!((st.state, st.trigger_index), (CaptureState::Triggered, 4));
+    assert_eq!(cl.controller.capture_trigger().map_err(|r| r.text()), Err("capture not armed"));
+    // From period 10 on: the trigger sample is period 12's.
+    for k in 10..10 + 3 * 50 {
+        let v = ramp_v(k);
+        cl.step_with(|s| s.bus_voltage_v = v);
+    }
+    let st = cl.controller.capture_status();
+    assert_eq!((st.state, st.trigger_index, st.samples), (CaptureState::Done, 4, 54));
+    let bus = read_all(&cl.controller, 0);
+    let periods: std::vec::Vec<i64> = bus.iter().map(|&v| period_of(v)).collect();
+    assert_eq!(&periods[..6], &[0, 3, 6, 9, 12, 15]);
+    assert_eq!(periods[53], 12 + 3 * 49);
+}
+
 #[test]
 fn decimation_spaces_the_samples_by_its_periods() {
     let mut cl = holding();

@@ -11,8 +11,9 @@
 //! The PWM interrupt's part is small on purpose: a sample reads each
 //! slot's value, encodes it with the slot's scale and bias (one
 //! multiply-add and a saturating conversion) and writes the frame with one
-//! bounds check. The rest (the trigger, the pre-trigger count, the end)
-//! runs only when a trigger is pending or a count-down of frames runs out. The store is separate from
+//! bounds check. The rest (the pre-trigger count, the end) runs only when
+//! a count-down of frames runs out; a trigger is taken where it happens,
+//! outside the frame (see [`Capture::take_trigger`]). The store is separate from
 //! the controller so that the controller stays small enough to build and
 //! hand over on the stack, and so thread mode can read a done capture
 //! straight from the store (the interrupt writes nothing once a capture is
@@ -104,9 +105,14 @@ pub struct Capture {
     store: Option<&'static CaptureStore>,
     // The counters the PWM interrupt touches are words: halfwords cost a
     // zero-extension or a shift at each test.
-    /// PWM periods to the next sample; 0 while not recording.
-    countdown: u32,
-    decimation: u16,
+    /// PWM periods to skip before the next sample, and its reload
+    /// (decimation − 1): with decimation 1 a sampled period tests one
+    /// zero and stores one.
+    skip: u32,
+    skip_reload: u16,
+    /// Armed or triggered: the controller's `HOOK_CAPTURE` mirrors it, so
+    /// the period tests the hook byte, not this.
+    recording: bool,
     /// Cell of the next frame's first signal (a halfword: then the
     /// frame's end cannot overflow, and that test drops out).
     write_cell: u16,
@@ -114,8 +120,6 @@ pub struct Capture {
     /// samples all in the ring (armed), the end (triggered).
     frames_to_event: u32,
     count: u8,
-    /// A trigger event seen; acted on at the next sample.
-    pending: bool,
     state: CaptureState,
     trigger: CaptureTrigger,
     /// Armed with all its pre-trigger samples in the ring.
@@ -137,12 +141,12 @@ impl Capture {
         Self {
             ring: &[],
             store: None,
-            countdown: 0,
-            decimation: 1,
+            skip: 0,
+            skip_reload: 0,
+            recording: false,
             write_cell: 0,
             frames_to_event: 0,
             count: 0,
-            pending: false,
             state: CaptureState::Idle,
             trigger: CaptureTrigger::Command,
             pre_filled: false,
@@ -170,7 +174,7 @@ impl Capture {
     /// True while samples are being written (armed or triggered).
     #[inline(always)]
     pub fn recording(&self) -> bool {
-        self.countdown != 0
+        self.recording
     }
 
     pub fn state(&self) -> CaptureState {
@@ -233,12 +237,13 @@ impl Capture {
         *self = Self {
             ring,
             store: self.store,
-            countdown: 1,
-            decimation: c.decimation,
+            // The first sample in the first period after the configure.
+            skip: 0,
+            skip_reload: c.decimation.wrapping_sub(1), // ≥ 1, checked above
+            recording: true,
             write_cell: 0,
             frames_to_event: if pre_filled { u32::MAX } else { u32::from(c.pre_trigger) },
             count: n as u8,
-            pending: false,
             state: CaptureState::Armed,
             trigger: c.trigger,
             pre_filled,
@@ -258,7 +263,7 @@ impl Capture {
     /// A trigger event of kind `kind`: taken if the capture is armed for it.
     pub fn event(&mut self, kind: CaptureTrigger) {
         if self.awaits(kind) {
-            self.pending = true;
+            self.take_trigger();
         }
     }
 
@@ -267,21 +272,19 @@ impl Capture {
         if self.state != CaptureState::Armed {
             return Err(Reason::CaptureNotArmed);
         }
-        self.pending = true;
+        self.take_trigger();
         Ok(())
     }
 
-    /// Counts one PWM period down; true when this period is sampled.
+    /// Counts one PWM period of a recording capture (the caller knows it
+    /// records); true when this period is sampled.
     #[inline(always)]
     pub fn tick(&mut self) -> bool {
-        if self.countdown == 0 {
+        if self.skip != 0 {
+            self.skip = self.skip.wrapping_sub(1);
             return false;
         }
-        self.countdown = self.countdown.wrapping_sub(1);
-        if self.countdown != 0 {
-            return false;
-        }
-        self.countdown = u32::from(self.decimation);
+        self.skip = u32::from(self.skip_reload);
         true
     }
 
@@ -302,20 +305,15 @@ impl Capture {
         self.signal.get(K).copied().unwrap_or(Signal::CurrentQ)
     }
 
-    /// A trigger waits for the next sample.
-    #[inline(always)]
-    pub fn trigger_pending(&self) -> bool {
-        self.pending
-    }
-
-    /// Acts on a pending trigger, before the frame of a sampled period.
+    /// Makes the next frame written the trigger sample: the first sample
+    /// at or after the event. Taken where the event happens (a command,
+    /// a fault, a test's start), not in the frame: nothing the frame
+    /// reads (the write position, the frame count-down) changes between
+    /// the event and the next sample, so the record is the same as if it
+    /// were taken there, and the sampled period tests nothing for it.
     #[cold]
     #[inline(never)]
-    pub fn take_trigger(&mut self) {
-        self.pending = false;
-        if self.state != CaptureState::Armed {
-            return;
-        }
+    fn take_trigger(&mut self) {
         self.state = CaptureState::Triggered;
         // Armed, `frames_to_event` counts down to the pre-trigger
         // samples all in: fewer than `pre_trigger` written until then.
@@ -355,24 +353,21 @@ impl Capture {
         }
     }
 
-    /// Ends a frame; false once the capture is done.
+    /// Ends a frame; true when the frame count-down ran out: the caller
+    /// then calls [`Self::frames_event`] (out of line, from the caller so
+    /// that the frame's code keeps no pointer to the capture for it).
     #[inline(always)]
     pub fn advance(&mut self) -> bool {
         self.frames_to_event = self.frames_to_event.wrapping_sub(1);
-        if self.frames_to_event == 0 {
-            return self.frames_event();
-        }
-        true
+        self.frames_to_event == 0
     }
 
     /// The frame count-down ran out: the pre-trigger samples are all in
-    /// (armed), or the record is complete (triggered).
-    #[cold]
-    #[inline(never)]
-    fn frames_event(&mut self) -> bool {
+    /// (armed), or the record is complete (triggered). False once done.
+    pub fn frames_event(&mut self) -> bool {
         if self.state == CaptureState::Triggered {
             self.state = CaptureState::Done;
-            self.countdown = 0;
+            self.recording = false;
             return false;
         }
         // Armed: the pre-trigger part of the ring is full; nothing more to

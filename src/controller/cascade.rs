@@ -28,7 +28,7 @@ impl Controller {
     /// [`Self::rotor_state`] inlined into the 20 kHz path: the call, its
     /// frame and return cost four instructions a period there.
     #[inline(always)]
-    fn rotor_state_inline(&self) -> RotorState {
+    pub(super) fn rotor_state_inline(&self) -> RotorState {
         let k = self.derived.electrical_rad_per_count;
         RotorState {
             // Not wrapped: within offset ± 2π·pole_pairs, which `sincos`

@@ -405,7 +405,14 @@ impl Controller {
 
     /// Electrical angle the current loop uses now (offset applied).
     pub fn electrical_angle_rad(&self) -> f32 {
-        crate::foc::wrap_pi(self.rotor_state().electrical_angle_rad)
+        self.electrical_angle_rad_inline()
+    }
+
+    /// [`Self::electrical_angle_rad`] inlined, for the capture's slots:
+    /// with no call in the frame, its hot path needs no saved registers.
+    #[inline(always)]
+    pub(super) fn electrical_angle_rad_inline(&self) -> f32 {
+        crate::foc::wrap_pi(self.rotor_state_inline().electrical_angle_rad)
     }
 
     /// True while a planned move has time left or a stream runs.

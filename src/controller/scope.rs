@@ -257,7 +257,7 @@ impl Controller {
     /// the sample of this period, then the test's reference for the next.
     #[inline(never)]
     pub(super) fn hooks_period(&mut self, s: &SensorSample) {
-        if self.capture.tick() {
+        if self.hooks & HOOK_CAPTURE != 0 && self.capture.tick() {
             self.capture_frame(s);
         }
         if self.hooks & HOOK_TEST != 0 {
@@ -265,29 +265,34 @@ impl Controller {
         }
     }
 
-    /// One frame of the capture: a pending trigger first, then each slot's
-    /// value, encoded and stored.
+    /// One frame of the capture: each slot's value, encoded and stored.
     #[inline(always)]
     fn capture_frame(&mut self, s: &SensorSample) {
-        if self.capture.trigger_pending() {
-            self.capture.take_trigger();
-        }
         // One copy of the frame per signal count: no loop, each slot's
         // table entries at fixed places. The count is 1 to 4: `& 3` makes
         // the four cases a jump table (4 → 0).
-        let going = match self.capture.count() & 3 {
+        let event = match self.capture.count() & 3 {
             0 => self.capture_write::<4>(s),
             1 => self.capture_write::<1>(s),
             2 => self.capture_write::<2>(s),
             _ => self.capture_write::<3>(s),
         };
-        if !going {
+        if event {
+            self.capture_event();
+        }
+    }
+
+    /// The capture's frame count-down ran out (see `Capture::frames_event`).
+    #[cold]
+    #[inline(never)]
+    fn capture_event(&mut self) {
+        if !self.capture.frames_event() {
             self.refresh_hooks();
         }
     }
 
-    /// Writes the frame of `N` slots (the configured count); false once
-    /// the capture is done. Slot by slot, written out: the core is built
+    /// Writes the frame of `N` slots (the configured count); true when the
+    /// frame count-down ran out. Slot by slot, written out: the core is built
     /// for size, so the compiler would keep a loop here (a counter, a
     /// compare and a branch a slot, and the values through the stack).
     #[inline(always)]
@@ -330,7 +335,7 @@ impl Controller {
             Signal::PhaseCurrentA => s.phase_current_a[0],
             Signal::PhaseCurrentB => s.phase_current_a[1],
             Signal::PhaseCurrentC => s.phase_current_a[2],
-            Signal::ElectricalAngle => self.electrical_angle_rad(),
+            Signal::ElectricalAngle => self.electrical_angle_rad_inline(),
         }
     }
 

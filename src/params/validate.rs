@@ -307,7 +307,7 @@ impl ControlParams {
         }
         // A jump of half a turn or more in one period cannot be told from
         // the other way round: a bound that wide checks nothing.
-        let half_turn = e.counts_per_rev / 2;
+        let half_turn = e.counts_per_rev >> 1;
         if self.faults.encoder_max_step_counts >= half_turn {
             return Err(ParamError { leaf: leaf!(faults.encoder_max_step_counts), reason: Reason::EncoderBoundNotBelowHalfTurn });
         }
