@@ -164,6 +164,7 @@ reasons! {
 
     // ---- a protection's bound that would check nothing ----
     EncoderBoundNotBelowHalfTurn = "must be below half of encoder.counts_per_rev: a jump of half a turn cannot be told from one the other way",
+    EmfMismatchAboveQuarterRating = "must be <= a quarter of control.ratings.speed_max_rad_s, or a frozen encoder under a load that slips the rotor goes unseen",
 }
 
 impl core::fmt::Display for Reason {

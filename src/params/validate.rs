@@ -219,6 +219,10 @@ const RULES: &[Rule] = &[
     positive!(stream.velocity_mismatch_max_m_s),
 ];
 
+/// `power_stage.emf_speed_mismatch_rad_s` at most this part of the rated
+/// speed (a quarter, the scale of `faults.speed_following_error_rad_s`).
+pub const EMF_MISMATCH_PART_OF_RATED_SPEED: f32 = 0.25;
+
 /// Runs [`RULES`] over `p`: the first leaf that fails, and why.
 const fn check_rules(p: &ControlParams) -> Result<(), ParamError> {
     let base = (p as *const ControlParams).cast::<u8>();
@@ -431,6 +435,11 @@ impl ControlParams {
                 leaf: leaf!(power_stage.regen_bus_max_v),
                 reason: Reason::RegenAboveOvervoltage,
             });
+        }
+        // Beyond this a frozen encoder under a load that slips the rotor at
+        // standstill is never told from the back-EMF.
+        if !(p.emf_speed_mismatch_rad_s <= EMF_MISMATCH_PART_OF_RATED_SPEED * self.ratings.speed_max_rad_s) {
+            return Err(ParamError { leaf: leaf!(power_stage.emf_speed_mismatch_rad_s), reason: Reason::EmfMismatchAboveQuarterRating });
         }
         if self.stream.timeout_s < self.stream.period_max_s || !self.stream.timeout_s.is_finite() {
             return Err(ParamError { leaf: leaf!(stream.timeout_s), reason: Reason::TimeoutBelowPeriodMax });
