@@ -26,6 +26,15 @@ pub struct TruthRecord {
     pub phase_current_peak_a: f64,
 }
 
+/// The control parameters with a different top speed. The stream's
+/// velocity check may be at most half the top speed, so a lower top speed
+/// brings the check down with it rather than making the set invalid.
+pub fn with_top_speed(mut control: servo_core::ControlParams, max_velocity_m_s: f32) -> servo_core::ControlParams {
+    control.trajectory.max_velocity_m_s = max_velocity_m_s;
+    control.stream.velocity_mismatch_max_m_s = control.stream.velocity_mismatch_max_m_s.min(0.5 * max_velocity_m_s);
+    control
+}
+
 /// The drive of the simulator's experiments: commissioned (offset and
 /// reference known, as with an absolute encoder), its expected load the one
 /// the plant starts with, as the user's configuration would state it.

@@ -73,8 +73,8 @@ pub fn replay(rig: &RigConfig, log: &Log, max_s: f64) -> Result<Replay> {
     let amax = aref.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let mut control = rig.control;
     if vmax > 1e-6 {
-        control.trajectory.max_velocity_m_s =
-            (vmax as f32).min(control.trajectory.max_velocity_m_s.max(vmax as f32));
+        let top = (vmax as f32).min(control.trajectory.max_velocity_m_s.max(vmax as f32));
+        control = crate::sim::with_top_speed(control, top);
     }
     if amax > 1e-6 {
         control.trajectory.max_acceleration_m_s2 =

@@ -105,8 +105,7 @@ pub const COLUMNS: [&str; 9] = [
 /// Runs `exp` on the rig with `effects`; returns the log (time from the
 /// end of the settling). Fails if the core latches a fault.
 pub fn run(rig: &RigConfig, effects: &UnmodelledEffects, exp: &Experiment, seed: u64) -> Result<Log> {
-    let mut control = rig.control;
-    control.trajectory.max_velocity_m_s = exp.max_velocity_m_s as f32;
+    let mut control = crate::sim::with_top_speed(rig.control, exp.max_velocity_m_s as f32);
     control.trajectory.max_acceleration_m_s2 = exp.max_acceleration_m_s2 as f32;
     let x0 = rig.plant.stroke.initial_position_m;
     let r = rig.plant.metres_per_rad();
