@@ -2,54 +2,14 @@
 //! drive runs in a thread on an ephemeral port (fast pacing), the tool's
 //! own functions talk to it.
 
+mod drive_support;
+
+use drive_support::Drive;
 use host_sim::config::RigConfig;
-use host_sim::drive::{self, DriveOptions, Pace, StopFlag};
-use host_sim::tool::client::{Client, Endpoint};
+use host_sim::tool::client::Client;
 use host_sim::tool::{self, stream};
 use servo_core::protocol::{self, CaptureTrigger, DriveCommand, Error, Reply, Request, Signal, StreamPoint, Value};
-use std::net::SocketAddr;
-use std::path::PathBuf;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
-
-struct Drive {
-    addr: SocketAddr,
-    stop: StopFlag,
-    thread: Option<std::thread::JoinHandle<anyhow::Result<()>>>,
-}
-
-impl Drive {
-    fn start(store: Option<PathBuf>) -> Self {
-        let mut o = DriveOptions::new(RigConfig::nominal().unwrap());
-        o.pace = Pace::Fast;
-        o.commissioned = true;
-        o.store = store;
-        // Lock-step holds a stream's timeline whatever the host's load, up
-        // to this wall-clock stall of the client (the default 0.25 s was
-        // exceeded by a test thread descheduled on a loaded 2-core CI
-        // machine: the stream then ran free and the tracking test failed).
-        o.stream_idle_s = 2.0;
-        let (addr, stop, h) = drive::spawn_local(o).unwrap();
-        Self { addr, stop, thread: Some(h) }
-    }
-    fn connect(&self) -> Client {
-        Client::connect(&Endpoint::Tcp(self.addr.to_string())).unwrap()
-    }
-    fn raw(&self) -> Client {
-        let s = std::net::TcpStream::connect(self.addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
-        Client::raw(Box::new(s))
-    }
-}
-
-impl Drop for Drive {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(h) = self.thread.take() {
-            h.join().unwrap().unwrap();
-        }
-    }
-}
 
 fn enabled(c: &mut Client) {
     c.ask(Request::Command(DriveCommand::Enable)).unwrap();

@@ -4,11 +4,12 @@
 //! over the protocol in chunks, and run bit for bit as the same weights
 //! compiled in.
 
+mod drive_support;
 mod protocol_support;
 
 use host_sim::config::RigConfig;
-use host_sim::drive::{self, DriveOptions, Pace, StopFlag};
-use host_sim::tool::client::{Client, Endpoint};
+use drive_support::Drive;
+use host_sim::drive::{self, DriveOptions};
 use host_sim::tool::observer as obs;
 use protocol_support::*;
 use servo_core::observer::block::{self, Part, Weights, STRUCTURE_HASH, WORDS};
@@ -17,7 +18,6 @@ use servo_core::observer::{evaluate, log2_decay};
 use servo_core::params::record::{self, RecordError, RECORD_MAX};
 use servo_core::protocol::{self as proto, DriveCommand, Error, ObserverRequest, ObserverSource, Reply, Request};
 use servo_core::{ControlParams, Reason};
-use std::sync::atomic::Ordering;
 
 const SHIFT_MAX_M: f32 = ControlParams::DEFAULT.faults.observer_shift_max_m;
 
@@ -231,36 +231,6 @@ fn an_upload_in_chunks_is_stored_run_and_a_bad_one_changes_nothing() {
     assert!(matches!(r, Some(Reply::Observer(st)) if st.source == ObserverSource::Compiled), "{r:?}");
     assert!(std::ptr::eq(d.observer, &block::COMPILED));
     assert_eq!(record::decode_record(&s.record).unwrap().observer, None);
-}
-
-struct Drive {
-    addr: std::net::SocketAddr,
-    stop: StopFlag,
-    thread: Option<std::thread::JoinHandle<anyhow::Result<()>>>,
-}
-
-impl Drive {
-    fn start(store: Option<std::path::PathBuf>) -> Self {
-        let mut o = DriveOptions::new(RigConfig::nominal().unwrap());
-        o.pace = Pace::Fast;
-        o.commissioned = true;
-        o.store = store;
-        o.stream_idle_s = 2.0;
-        let (addr, stop, h) = drive::spawn_local(o).unwrap();
-        Self { addr, stop, thread: Some(h) }
-    }
-    fn connect(&self) -> Client {
-        Client::connect(&Endpoint::Tcp(self.addr.to_string())).unwrap()
-    }
-}
-
-impl Drop for Drive {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(h) = self.thread.take() {
-            h.join().unwrap().unwrap();
-        }
-    }
 }
 
 /// The drive's prediction, read back as the running model's forward pass
