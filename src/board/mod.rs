@@ -45,8 +45,11 @@ pub const BOARD_PARAMS: (servo_core::ControlParams, active::BoardLimitsApplied) 
 pub const VALID_PARAMS: servo_core::params::ValidatedParams =
     match servo_core::params::ValidatedParams::new(BOARD_PARAMS.0) {
         Ok(v) => v,
-        // A const panic takes one `&str`: the field's name (its rule is in
-        // `ControlParams::validate`, and host-sim's `--params` prints both).
+        // Evaluated by the compiler, never in the image: this panic is a
+        // build error, not a run-time path (the panic-never link check
+        // proves the image has none). A const panic takes one `&str`: the
+        // field's name (its rule is in `ControlParams::validate`, and
+        // host-sim's `--params` prints both).
         Err(e) => panic!("{}", e.field()),
     };
 

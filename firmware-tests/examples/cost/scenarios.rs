@@ -4,6 +4,18 @@
 
 use super::*;
 
+/// The capture both scenarios measure: four signals every period, the
+/// figure the capturing budget is stated for.
+fn bench_capture() -> CaptureConfig {
+    CaptureConfig {
+        signals: servo_core::capture::SignalList::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or(servo_core::capture::SignalList::EMPTY),
+        decimation: 1,
+        samples: 1024,
+        pre_trigger: 512,
+        trigger: CaptureTrigger::Command,
+    }
+}
+
 /// `Controller::step` over the golden closed-loop script, measured per
 /// period kind: current, speed, position, bridge off; and whether a fault
 /// was seen. With `capture`, a four-signal capture records throughout.
@@ -17,13 +29,7 @@ pub(crate) fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats,
     bench.brake.fitted = false;
     let mut c = Controller::new(bench);
     static STORE: CaptureStore = CaptureStore::new();
-    let cfg = CaptureConfig {
-        signals: servo_core::capture::SignalList::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or(servo_core::capture::SignalList::EMPTY),
-        decimation: 1,
-        samples: 1024,
-        pre_trigger: 512,
-        trigger: CaptureTrigger::Command,
-    };
+    let cfg = bench_capture();
     if capture {
         c.attach_capture_store(&STORE);
     }
@@ -119,13 +125,7 @@ pub(crate) fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_peri
     let mut c = Controller::new(bench);
     static STORE: CaptureStore = CaptureStore::new();
     c.attach_capture_store(&STORE);
-    let cfg = CaptureConfig {
-        signals: servo_core::capture::SignalList::from_slice(&[Signal::CurrentQ, Signal::CurrentQReference, Signal::Speed, Signal::MotorPosition]).unwrap_or(servo_core::capture::SignalList::EMPTY),
-        decimation: 1,
-        samples: 1024,
-        pre_trigger: 512,
-        trigger: CaptureTrigger::Command,
-    };
+    let cfg = bench_capture();
     // Two sets a live proportional gain apart: each apply retunes.
     let mut alt = bench;
     alt.current_pi.kp *= 1.01;
