@@ -10,11 +10,13 @@
 //! CI runs `gap_smoke` (3 cases). The benchmark writes
 //! `target/diagnose_suite/gap/{suite.json,report.md}`:
 //! `cargo test --release --test diagnose_gap -- --ignored --nocapture`
-//! (`DIAGNOSE_GAP_SET=tuning|seen|holdout` runs one set only).
+//! (`DIAGNOSE_GAP_SET=tuning|seen|holdout` runs one set only;
+//! `DIAGNOSE_GAP_SEED=N` runs the set drawn from seed N alone).
 
 mod diagnose_support;
 
 use diagnose_support::gap::{force_logs, nominal_pair, quiet_nominal, wrong_rig, GapLogs, Timing, WrongParam};
+use diagnose_support::seed_base_env;
 use diagnose_support::truth::nominal_rig;
 use host_sim::diagnose::disturbance::DisturbanceFit;
 use host_sim::diagnose::residual::{fit_regression, Nominal, Physics};
@@ -331,21 +333,26 @@ const HOLDOUT_SEED_BASE: u64 = 4000;
 #[ignore = "large-gap benchmark (≈ 3–9 min): cargo test --release --test diagnose_gap -- --ignored --nocapture"]
 fn gap_suite() {
     let set = std::env::var("DIAGNOSE_GAP_SET").unwrap_or_default();
+    let custom = seed_base_env("DIAGNOSE_GAP_SEED");
     let n: u64 = std::env::var("DIAGNOSE_GAP_N").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
     let t0 = std::time::Instant::now();
     let mut figures = serde_json::json!({});
     let mut rep = String::new();
-    for (key, base, title) in [
-        ("tuning", TUNING_SEED_BASE, "Large-gap suite, tuning seeds (from 0; the method was developed on them)"),
-        ("seen", SEEN_SEED_BASE, "Large-gap suite, seen seeds (from 1000; held out once, then studied while the method was changed)"),
-        ("holdout", HOLDOUT_SEED_BASE, "Large-gap suite, held-out seeds (from 4000; run once after the method was fixed)"),
-    ] {
-        if !set.is_empty() && set != key {
+    let sets = match custom {
+        Some(base) => vec![("custom", base, format!("Large-gap suite, seeds from {base} (DIAGNOSE_GAP_SEED)"))],
+        None => vec![
+            ("tuning", TUNING_SEED_BASE, "Large-gap suite, tuning seeds (from 0; the method was developed on them)".into()),
+            ("seen", SEEN_SEED_BASE, "Large-gap suite, seen seeds (from 1000; held out once, then studied while the method was changed)".into()),
+            ("holdout", HOLDOUT_SEED_BASE, "Large-gap suite, held-out seeds (from 4000; run once after the method was fixed)".into()),
+        ],
+    };
+    for (key, base, title) in sets {
+        if custom.is_none() && !set.is_empty() && set != key {
             continue;
         }
         let t = std::time::Instant::now();
         let out: Vec<Outcome> = specs(base, n).into_iter().map(run_case).collect();
-        let (f, r) = summarize(&out, title, t.elapsed().as_secs_f64());
+        let (f, r) = summarize(&out, &title, t.elapsed().as_secs_f64());
         figures[key] = f;
         figures[format!("{key}_seed_base")] = base.into();
         rep.push_str(&r);

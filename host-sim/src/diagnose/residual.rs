@@ -72,7 +72,11 @@ pub struct Segment {
     /// Gravity + external load, N; nut force (load, rod inertia, seal), N.
     pub f_load: Vec<f64>,
     pub f_ax: Vec<f64>,
+    /// The logged current, Savitzky–Golay smoothed (with the derivatives
+    /// of the inverse dynamics) and as logged: smoothing over ±10 ms
+    /// removes what drives a mode above ≈ 25 Hz.
     pub iq: Vec<f64>,
+    pub iq_logged: Vec<f64>,
     /// Direction of motion with hysteresis (±1), and samples since reversal.
     pub dir: Vec<f64>,
     pub since_reversal_s: Vec<f64>,
@@ -278,6 +282,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             seg.dir.push(dir);
             seg.since_reversal_s.push(t[i] - last_rev);
             seg.iq.push(iq.map_or(0.0, |q| q.0));
+            seg.iq_logged.push(iq_raw.as_ref().map_or(0.0, |v| v[i]));
             seg.input.push(match (reference, &iq) {
                 (Some(r), _) => r[i],
                 (None, Some(q)) => q.0,
