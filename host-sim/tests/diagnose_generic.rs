@@ -142,8 +142,9 @@ fn a_frame_resonance_driven_by_the_thrust_is_named_with_its_frequency() {
 }
 
 /// Torque channel remainder `d(t) N(t)`: a gain error `d` on the nominal
-/// torque `N`, with white noise of 2 mN·m.
-fn gain_case(seed: u64, d: &dyn Fn(f64) -> f64, held_t0: f64) -> Vec<GenericFit> {
+/// torque `N`, with white noise of 2 mN·m; with `temperature`, the
+/// temperature at each time is logged.
+fn gain_case_logged(seed: u64, d: &dyn Fn(f64) -> f64, held_t0: f64, temperature: Option<&dyn Fn(f64) -> f64>) -> Vec<GenericFit> {
     let p = Physics::from_rig(&nominal_rig());
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
     let seg = |t0: f64, rng: &mut ChaCha8Rng| {
@@ -151,11 +152,35 @@ fn gain_case(seed: u64, d: &dyn Fn(f64) -> f64, held_t0: f64) -> Vec<GenericFit>
         let tn = torque_nominal(&iq, &p);
         let tr: Vec<f64> = tn.iter().enumerate().map(|(k, n)| d(t0 + k as f64 * DT) * n).zip(noise(rng, iq.len(), 0.002)).map(|(a, b)| a + b).collect();
         let n = iq.len();
-        segment(t0, iq, &tn, tr, noise(rng, n, 1e-7))
+        let mut s = segment(t0, iq, &tn, tr, noise(rng, n, 1e-7));
+        if let Some(temp) = temperature {
+            s.temperature_c = (0..n).map(|k| temp(t0 + k as f64 * DT)).collect();
+        }
+        s
     };
     let train = seg(0.0, &mut rng);
     let held = seg(held_t0, &mut rng);
     diagnose_pair(train, held, &p)
+}
+
+fn gain_case(seed: u64, d: &dyn Fn(f64) -> f64, held_t0: f64) -> Vec<GenericFit> {
+    gain_case_logged(seed, d, held_t0, None)
+}
+
+#[test]
+fn a_gain_following_the_logged_temperature_is_named_with_its_coefficient() {
+    // NdFeB: the torque constant falls 0.12 %/K, so the current needed
+    // rises by ≈ β ΔT; the magnets warm 60 K with τ = 3 s.
+    let (beta, dtm, tau) = (1.2e-3, 60.0, 3.0);
+    let temp = move |t: f64| 30.0 + dtm * (1.0 - (-t / tau).exp());
+    let d = move |t: f64| beta * (temp(t) - 30.0);
+    let fits = gain_case_logged(31, &d, LEN_S, Some(&temp));
+    let g = named(&fits).unwrap_or_else(|| panic!("nothing named: {fits:#?}"));
+    assert_eq!((g.class.as_str(), g.channel.as_str()), ("gain_drift", "torque"), "{fits:#?}");
+    let k = g.params["gain_per_k"];
+    assert!((k / beta - 1.0).abs() <= 0.1, "gain per K {k:.3e} against {beta:.3e}");
+    // Held-out, the law learnt on training predicts the warm run.
+    assert!(g.remainder_shrink_pct >= 70.0, "{g:?}");
 }
 
 #[test]

@@ -345,6 +345,15 @@ pub fn fit(
     }
     // A gain drifting with time.
     out.extend(drift::fit(train, rem_t, held, rem_h, c, nominal_rms_h));
+    // A delay short against the motion's time scale is identified by the
+    // product of amplitude and shift (`N(t + τ) − N(t) ≈ τ N'`): the grid's
+    // shift alone trades against the amplitude, so the delay reported is
+    // the product, the grid point kept as `shape_delay_ms`.
+    for g in out.iter_mut().filter(|g| g.class == "delay") {
+        let (tau, a) = (g.params["delay_ms"], g.params["amplitude"]);
+        g.params.insert("shape_delay_ms".into(), tau);
+        g.params.insert("delay_ms".into(), a * tau);
+    }
     out.sort_by(|a, b| b.primary_shrink_pct.total_cmp(&a.primary_shrink_pct));
     out
 }

@@ -12,6 +12,12 @@
 //! A gain that does not move is a gain error, not a drift: on training the
 //! drifting gain must explain `OVER_CONSTANT_PTS` more of the remainder
 //! than one constant gain per run, scored the same way.
+//!
+//! With a logged motor temperature the gain is `g0 + g1 (T − T̄)`, `T̄` the
+//! training mean: the temperature carries the state across runs, so this
+//! one is fitted on training and scored on the held-out part like the
+//! library, and it must add `OVER_CONSTANT_PTS` over a constant gain
+//! fitted the same way.
 
 use super::super::events::Remainder;
 use super::super::figures::shrink;
@@ -56,6 +62,80 @@ fn regressors(s: &Segment, c: usize, drifting: bool) -> (usize, Vec<Vec<(usize, 
         })
         .collect();
     (p, x)
+}
+
+/// Regressors with the logged temperature: `N`, `N (T − t_ref)`.
+fn temperature_regressors(s: &Segment, c: usize, t_ref: f64) -> Vec<Vec<(usize, f64)>> {
+    let n = nominal_pred(s, c);
+    (0..s.len()).map(|i| vec![(0, n[i]), (1, n[i] * (s.temperature_c[i] - t_ref))]).collect()
+}
+
+/// One gain law `x` (shared by every run) fitted on `train` and scored on
+/// `held`: the weighted RMS each leaves, and the coefficients.
+fn shared_law(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Remainder, c: usize, p: usize, x: &dyn Fn(&Segment) -> Vec<Vec<(usize, f64)>>) -> (f64, f64, Vec<f64>) {
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
+    let mut atb = nalgebra::DVector::<f64>::zeros(p);
+    for (s, r) in train.iter().zip(rem_t) {
+        let Some(y) = &r[c] else { continue };
+        for (i, row) in x(s).iter().enumerate() {
+            let w2 = s.weight(c, i).powi(2);
+            for &(a, xa) in row {
+                atb[a] += w2 * xa * y[i];
+                for &(b, xb) in row {
+                    ata[(a, b)] += w2 * xa * xb;
+                }
+            }
+        }
+    }
+    let b: Vec<f64> = ata.svd(true, true).solve(&atb, 1e-12).map(|v| v.iter().copied().collect()).unwrap_or_else(|_| vec![0.0; p]);
+    let left = |segs: &[&Segment], rem: &Remainder| {
+        let (mut ss, mut n) = (0.0, 0usize);
+        for (s, r) in segs.iter().zip(rem) {
+            let Some(y) = &r[c] else { continue };
+            for (i, row) in x(s).iter().enumerate() {
+                ss += (s.weight(c, i) * (y[i] - predict(row, &b))).powi(2);
+            }
+            n += s.len();
+        }
+        if n == 0 { 0.0 } else { (ss / n as f64).sqrt() }
+    };
+    (left(train, rem_t), left(held, rem_h), b)
+}
+
+/// The gain drifting with the logged temperature, when every run logs it.
+fn with_temperature(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Remainder, c: usize, nominal_rms_h: f64) -> Option<GenericFit> {
+    let logged = |segs: &[&Segment]| !segs.is_empty() && segs.iter().all(|s| s.temperature_c.len() == s.len() && s.len() > 0);
+    if !logged(train) || !logged(held) {
+        return None;
+    }
+    let n: usize = train.iter().map(|s| s.len()).sum();
+    let t_ref = train.iter().flat_map(|s| &s.temperature_c).sum::<f64>() / n as f64;
+    let (base_t, base_h) = (rms(train, rem_t, c, None), rms(held, rem_h, c, None));
+    if base_t <= 0.0 || base_h <= 0.0 {
+        return None;
+    }
+    let (after_t, after_h, b) = shared_law(train, rem_t, held, rem_h, c, 2, &|s| temperature_regressors(s, c, t_ref));
+    let (const_t, _, _) = shared_law(train, rem_t, held, rem_h, c, 1, &|s| {
+        let n = nominal_pred(s, c);
+        n.iter().map(|v| vec![(0, *v)]).collect()
+    });
+    let own_pts = shrink(base_t, after_t) - shrink(base_t, const_t);
+    let mut g = GenericFit {
+        class: "gain_drift".into(),
+        channel: CHANNELS[c].into(),
+        primary_shrink_pct: shrink(nominal_rms_h, after_h),
+        remainder_shrink_pct: shrink(base_h, after_h),
+        train_shrink_pct: shrink(base_t, after_t),
+        refused: (own_pts < OVER_CONSTANT_PTS).then(|| {
+            format!("on training a constant gain explains within {OVER_CONSTANT_PTS} points as much as one following the temperature ({own_pts:.1} points less): a gain error, not a drift")
+        }),
+        ..Default::default()
+    };
+    g.params.insert("gain_per_k".into(), b.get(1).copied().unwrap_or(0.0));
+    g.params.insert("gain_at_mean_temperature".into(), b.first().copied().unwrap_or(0.0));
+    g.params.insert("mean_temperature_c".into(), t_ref);
+    g.params.insert("over_constant_gain_points".into(), own_pts);
+    Some(g)
 }
 
 /// Weighted least squares of `y` on the sparse rows of `x` where `keep`.
@@ -104,12 +184,16 @@ fn cv_rms(segs: &[&Segment], rem: &Remainder, c: usize, drifting: bool) -> f64 {
     }
 }
 
-/// The drifting gain on channel `c`: fitted and scored as above;
+/// The drifting gain on channel `c` (with the temperature when every run
+/// logs it): fitted and scored as above;
 /// `nominal_rms_h` is the nominal's held-out RMS on `c`. Its parameters are
 /// the training runs' gain course: the least-squares slope of the fitted
 /// gain over time (`drift_per_s`, fraction of the nominal per s) and its
 /// range (`gain_change_pct`).
 pub fn fit(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Remainder, c: usize, nominal_rms_h: f64) -> Option<GenericFit> {
+    if let Some(g) = with_temperature(train, rem_t, held, rem_h, c, nominal_rms_h) {
+        return Some(g);
+    }
     let base_t = rms(train, rem_t, c, None);
     let base_h = rms(held, rem_h, c, None);
     if base_t <= 0.0 || base_h <= 0.0 {
