@@ -462,6 +462,14 @@ const HOLDOUT4_SEED_BASE: u64 = 400;
 #[ignore = "full open-world suite, the tuning seeds and four held-out seed sets (≈ 3–5 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
 fn open_world_suite() {
     let t0 = std::time::Instant::now();
+    // `DIAGNOSE_OPEN_SEED=N`: the set drawn from seed N alone (3 draws).
+    if let Some(base) = seed_base_env("DIAGNOSE_OPEN_SEED") {
+        let out: Vec<Outcome> = specs(base, 3).into_iter().map(run_case).collect();
+        let (mut figures, rep) = summarize(&out, t0.elapsed().as_secs_f64(), &format!("Open-world suite, seeds from {base} (DIAGNOSE_OPEN_SEED)"));
+        figures["seed_base"] = base.into();
+        write("open", &figures, &rep);
+        return;
+    }
     let out: Vec<Outcome> = specs(0, 2).into_iter().map(run_case).collect();
     let (mut figures, mut rep) = summarize(
         &out,
