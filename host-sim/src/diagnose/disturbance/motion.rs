@@ -16,12 +16,14 @@ use crate::diagnose::residual::{Segment, TORQUE};
 /// Cross-validated share of the levels' variance the motion must explain
 /// for change points at logged events to count as model error, %.
 pub const FOLLOWS_MIN_PCT: f64 = 50.0;
-/// Intervals needed per regressor before the test says anything.
-const PER_REGRESSOR: usize = 3;
-const P: usize = 7;
+/// Intervals needed before the test says anything: over twice the
+/// regressors, so a leave-one-out fit still has ten degrees of freedom.
+const MIN_INTERVALS: usize = 16;
+const P: usize = 6;
 
-/// The motion over one interval: `[1, moving, moving·dir, a, v, F_load,
-/// |F_load|·dir]` (means; `moving` the standstill weight).
+/// The motion over one interval: `[1, moving, moving·dir, a, v, F_load]`
+/// (means; `moving` the standstill weight): what an inertia, friction
+/// (either direction), viscous or load error of the nominal scales with.
 fn row(s: &Segment, a: usize, e: usize) -> [f64; P] {
     let n = (e - a).max(1) as f64;
     let mean = |f: &dyn Fn(usize) -> f64| (a..e).map(f).sum::<f64>() / n;
@@ -33,7 +35,6 @@ fn row(s: &Segment, a: usize, e: usize) -> [f64; P] {
         mean(&|i| s.a[i]),
         mean(&|i| s.v[i]),
         mean(&|i| s.f_load[i]),
-        mean(&|i| s.f_load[i].abs() * s.dir[i]),
     ]
 }
 
@@ -55,7 +56,7 @@ pub fn levels_follow_motion(held: &[&Segment], intervals: &[Interval]) -> Option
         }
         xs.push((row(s, a, e), iv.level, (e - a) as f64 * s.dt));
     }
-    if xs.len() < PER_REGRESSOR * P {
+    if xs.len() < MIN_INTERVALS {
         return None;
     }
     let mut ata = nalgebra::SMatrix::<f64, P, P>::zeros();
