@@ -19,11 +19,12 @@ pub const FOLLOWS_MIN_PCT: f64 = 50.0;
 /// Intervals needed before the test says anything: over twice the
 /// regressors, so a leave-one-out fit still has ten degrees of freedom.
 const MIN_INTERVALS: usize = 16;
-const P: usize = 6;
+const P: usize = 7;
 
-/// The motion over one interval: `[1, moving, moving·dir, a, v, F_load]`
-/// (means; `moving` the standstill weight): what an inertia, friction
-/// (either direction), viscous or load error of the nominal scales with.
+/// The motion over one interval: `[1, moving, moving·dir, a, v, F_load,
+/// x]` (means; `moving` the standstill weight): what an inertia, friction
+/// (either direction), viscous, load or stroke-position (a worn or
+/// spalled stretch of the screw) error of the nominal scales with.
 fn row(s: &Segment, a: usize, e: usize) -> [f64; P] {
     let n = (e - a).max(1) as f64;
     let mean = |f: &dyn Fn(usize) -> f64| (a..e).map(f).sum::<f64>() / n;
@@ -35,6 +36,7 @@ fn row(s: &Segment, a: usize, e: usize) -> [f64; P] {
         mean(&|i| s.a[i]),
         mean(&|i| s.v[i]),
         mean(&|i| s.f_load[i]),
+        mean(&|i| s.x[i]),
     ]
 }
 
