@@ -32,7 +32,7 @@ use golden::plant::{Noise, RigidPlant};
 use golden::CLOSED_LOOP_SCRIPT;
 use servo_core::foc::current_loop::RotorState;
 use servo_core::foc::{
-    clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, Dq, SinCos,
+    clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, CurrentTiming, Dq, SinCos,
 };
 use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
 use servo_core::capture::CaptureStore;
