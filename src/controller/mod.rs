@@ -546,7 +546,7 @@ impl Controller {
             Mode::Preloading => self.preload_period(s, position_tick, speed_tick),
         };
         if self.hooks != 0 {
-            self.hooks_period(s);
+            self.hooks_period(s, speed_tick);
         }
         if position_tick {
             self.cut_telemetry();
