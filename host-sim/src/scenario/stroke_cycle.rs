@@ -9,6 +9,7 @@ use crate::config::RigConfig;
 use crate::plant::Plant;
 use crate::sim::{ClosedLoop, TruthRecord};
 use anyhow::{bail, Result};
+use servo_core::observer::block::Weights;
 use servo_core::{Command, CommandOutcome, Controller, Telemetry};
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -81,6 +82,12 @@ enum Leg {
 
 /// Runs one cycle closed-loop through the control core.
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
+    run_stroke_cycle_with(rig, cycle, None)
+}
+
+/// [`run_stroke_cycle`] with the observer running `weights` (as uploaded)
+/// instead of the compiled model.
+pub fn run_stroke_cycle_with(rig: &RigConfig, cycle: &StrokeCycle, weights: Option<&'static Weights>) -> Result<RunTrace> {
     let mut scaled = rig.clone();
     scaled.plant.rod.payload_mass_kg *= cycle.payload_scale;
     scaled.validate().map_err(|e| anyhow::anyhow!("payload ×{}: {e}", cycle.payload_scale))?;
@@ -92,6 +99,11 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
     let mut cl = ClosedLoop::new(controller, plant, bus);
     if let Err(e) = cl.controller.command(Command::Enable) {
         bail!("the drive refused to enable: {e:?}");
+    }
+    if let Some(weights) = weights {
+        if let Err(e) = cl.controller.command(Command::SetObserverWeights { weights }) {
+            bail!("the drive refused the observer weights: {e:?}");
+        }
     }
     if let Err(e) = cl.controller.command(Command::SetCompensation { enabled: cycle.compensation }) {
         bail!("the drive refused to switch compensation: {e:?}");
