@@ -1,5 +1,6 @@
 //! Axial load force estimated from the q-axis current, for telemetry and for
-//! the error observer's load input when no load cell is fitted.
+//! the error observer's load input when no load cell is fitted or
+//! `compensation.force_from_estimate` selects it.
 
 use crate::motion::speed_loop::{coulomb_friction_n_m, friction_direction};
 use crate::params::ControlParams;
