@@ -43,7 +43,7 @@ impl LoadEstimator {
     /// in `T_f` (its load share `(L/2π)·μ·|F|` changes sign with the motion),
     /// not a factor on the torque: raising a load takes `F·L/2π/η`, lowering
     /// it only `F·L/2π·(2 − 1/η)`, and a fixed factor would read the same
-    /// load ≈ 20 % apart on the two legs. Sign: positive when the cylinder
+    /// load ≈ 25 % apart on the two legs. Sign: positive when the cylinder
     /// pushes (a compressive load it holds up). What is left is the load a
     /// load cell at the nut would read: weight, tilt, payload and its
     /// inertia, and any external force.
@@ -56,7 +56,7 @@ impl LoadEstimator {
     /// is while it lies in that band. Reading the stuck nut's torque as the
     /// load instead closes a loop through the observer: its shift moves the
     /// rod a little, the friction flips, the "load" jumps by 2|T_f|/r
-    /// (≈ 400 N at the rated load) and so does the next shift.
+    /// (≈ 440 N at the rated load) and so does the next shift.
     ///
     /// `inertial_n` (moving mass × reference acceleration) bypasses the
     /// low-pass: the filter then only smooths the slow part (weight, tilt,

@@ -9,7 +9,6 @@ use crate::config::RigConfig;
 use crate::plant::Plant;
 use crate::sim::{ClosedLoop, TruthRecord};
 use anyhow::{bail, Result};
-use servo_core::observer::block::Weights;
 use servo_core::{Command, CommandOutcome, Controller, Telemetry};
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -85,9 +84,13 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
     run_stroke_cycle_with(rig, cycle, None)
 }
 
-/// [`run_stroke_cycle`] with the observer running `weights` (as uploaded)
-/// instead of the compiled model.
-pub fn run_stroke_cycle_with(rig: &RigConfig, cycle: &StrokeCycle, weights: Option<&'static Weights>) -> Result<RunTrace> {
+/// [`run_stroke_cycle`] with the observer running `weights` (as uploaded
+/// to a drive) instead of the compiled model.
+pub fn run_stroke_cycle_with(
+    rig: &RigConfig,
+    cycle: &StrokeCycle,
+    weights: Option<&'static servo_core::observer::block::Weights>,
+) -> Result<RunTrace> {
     let mut scaled = rig.clone();
     scaled.plant.rod.payload_mass_kg *= cycle.payload_scale;
     scaled.validate().map_err(|e| anyhow::anyhow!("payload ×{}: {e}", cycle.payload_scale))?;
