@@ -146,6 +146,14 @@ pub fn rod_mode(rig: &RigConfig, x: f64) -> RodMode {
     RodMode::new(1.0 / c, ph.axial_damping_n_s_m, ph.m_moving, ph.j_eq(), ph.j_rot)
 }
 
+/// The torsional mode of the rig's rotor-to-nut path at `x`.
+pub fn torsion_mode(rig: &RigConfig, x: f64) -> design::TorsionMode {
+    let ph = Physics::from_rig(rig);
+    let p = &rig.plant;
+    let k_t = 1.0 / ph.compliance.torsional_compliance_rad_per_n_m(x);
+    design::TorsionMode::new(k_t, p.coupling.torsional_damping_n_m_s_rad, p.motor_side_inertia_kg_m2(), p.screw.inertia_kg_m2)
+}
+
 /// Proposes the gains, or refuses the ask with the reason
 /// (`feasible`). `ident` (else the parameters' own beliefs) gives the
 /// inertia, friction and winding; the design model carries the rod's axial
@@ -331,7 +339,7 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     };
     let (cb, sb, pb) = (asked.current_bw_hz, asked.speed_bw_hz, asked.position_bw_hz);
     let (cur_from, cur_to) = (cb / 10.0, (4.0 * cb).min(0.2 * pwm));
-    let (spd_from, spd_to) = (sb / 4.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
+    let (spd_from, spd_to) = (sb / 2.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
     let (pos_from, pos_to) = (pb / 4.0, (5.0 * pb).min(0.1 * pwm / f64::from(p.rates.position_loop_divider)));
     let cur_dur = fit_dur(cur_to, (4.0 / cur_from).clamp(0.1, 0.4), 3.0);
     let spd_dur = fit_dur(spd_to, (4.0 / spd_from).clamp(2.0, 8.0), 3.0);
