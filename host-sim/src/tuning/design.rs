@@ -41,11 +41,6 @@ pub struct DesignPlant {
     /// Optional axial (load-on-spring) mode: the motor's speed sees
     /// `1/(J s) · (s²/ω_a² + 2ζ_a s/ω_a + 1)/(s²/ω_r² + 2ζ_r s/ω_r + 1)`.
     pub rod_mode: Option<RodMode>,
-    /// Optional torsional mode of the rotor-to-nut path (coupling in series
-    /// with the screw's twist): the rotor on one side, the screw on the
-    /// other, far above the rod's mode.
-    #[serde(default)]
-    pub torsion_mode: Option<TorsionMode>,
     /// The speed PI's setpoint weight `b` (`control.speed_setpoint_weight`):
     /// the gains' structure, kept here so that every response below uses it.
     pub speed_setpoint_weight: f64,
@@ -101,35 +96,6 @@ impl RodMode {
     }
 }
 
-/// The rotor (rotor + coupling hub, `J_m`) against the screw (`J_s`) on
-/// the torsional stiffness `k_t` with damping `c`: above the rod's mode the
-/// load is decoupled, so the motor sees `J_m + J_s` below this mode and
-/// `J_m` alone above it. As a factor on the rest of the mechanics:
-/// `(s²/ω_a² + 2ζ_a s/ω_a + 1)/(s²/ω_r² + 2ζ_r s/ω_r + 1)` with
-/// `ω_a = √(k_t/J_s)`, `ω_r = ω_a √((J_m + J_s)/J_m)` (the modes are a decade
-/// apart, so the product of the two factors is the chain's mobility to
-/// within the coupling of the two).
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-pub struct TorsionMode {
-    pub antiresonance_hz: f64,
-    pub resonance_hz: f64,
-    pub zeta_a: f64,
-    pub zeta_r: f64,
-}
-
-impl TorsionMode {
-    pub fn new(k_t: f64, c: f64, j_motor: f64, j_screw: f64) -> Self {
-        let wa = (k_t / j_screw).sqrt();
-        let za = c / (2.0 * (k_t * j_screw).sqrt());
-        let ratio = ((j_motor + j_screw) / j_motor).sqrt();
-        TorsionMode { antiresonance_hz: wa / TAU, resonance_hz: wa * ratio / TAU, zeta_a: za, zeta_r: za * ratio }
-    }
-    fn factor(&self, s: C) -> C {
-        let (wa, wr) = (TAU * self.antiresonance_hz, TAU * self.resonance_hz);
-        (s * s / (wa * wa) + s * (2.0 * self.zeta_a / wa) + 1.0) / (s * s / (wr * wr) + s * (2.0 * self.zeta_r / wr) + 1.0)
-    }
-}
-
 impl DesignPlant {
     pub fn from_params(p: &ControlParams, inertia: f64, viscous: f64) -> Self {
         DesignPlant {
@@ -145,7 +111,6 @@ impl DesignPlant {
             pll_kp: f64::from(p.encoder.pll_kp_per_s),
             pll_ki: f64::from(p.encoder.pll_ki_per_s2),
             rod_mode: None,
-            torsion_mode: None,
             speed_setpoint_weight: f64::from(p.speed_setpoint_weight),
             load_inertia_kg_m2: 0.0,
             screw_mu: 0.0,
@@ -237,9 +202,10 @@ impl DesignPlant {
     pub fn mechanics(&self, w: f64) -> C {
         let s = C::new(0.0, w);
         let rigid = C::from(1.0) / (s * self.inertia_kg_m2 + self.viscous_n_m_s_rad);
-        let rod = self.rod_mode.map_or(C::from(1.0), |m| m.factor(s));
-        let torsion = self.torsion_mode.map_or(C::from(1.0), |m| m.factor(s));
-        rigid * rod * torsion
+        match &self.rod_mode {
+            Some(m) => rigid * m.factor(s),
+            None => rigid,
+        }
     }
 
     /// Speed PI output (A) to true speed (rad/s): torque filter, hold of the

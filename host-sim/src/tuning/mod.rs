@@ -6,7 +6,9 @@
 
 pub mod cli;
 pub mod design;
+pub mod family;
 pub mod feasible;
+pub mod filter;
 pub mod identify;
 pub mod measure;
 pub mod model;
@@ -144,14 +146,6 @@ pub fn rod_mode(rig: &RigConfig, x: f64) -> RodMode {
     let load = ph.m_moving * ph.gravity;
     let c = ph.local_compliance(load, x);
     RodMode::new(1.0 / c, ph.axial_damping_n_s_m, ph.m_moving, ph.j_eq(), ph.j_rot)
-}
-
-/// The torsional mode of the rig's rotor-to-nut path at `x`.
-pub fn torsion_mode(rig: &RigConfig, x: f64) -> design::TorsionMode {
-    let ph = Physics::from_rig(rig);
-    let p = &rig.plant;
-    let k_t = 1.0 / ph.compliance.torsional_compliance_rad_per_n_m(x);
-    design::TorsionMode::new(k_t, p.coupling.torsional_damping_n_m_s_rad, p.motor_side_inertia_kg_m2(), p.screw.inertia_kg_m2)
 }
 
 /// Proposes the gains, or refuses the ask with the reason
