@@ -41,6 +41,10 @@ enum Cmd {
         /// per rig and the worst case in summary.json, family.md.
         #[arg(long, conflicts_with_all = ["params", "observer"])]
         family: Option<PathBuf>,
+        /// With --family: choose each rig's torque filter by its own test
+        /// moves first (docs/tuning.md, "The torque filter per unit").
+        #[arg(long, requires = "family")]
+        tune_filter: bool,
     },
     /// Fault injection: every scenario of docs/reliability.md, closed loop.
     /// Writes summary.json, reliability_measured.md and a trace per scenario.
@@ -218,11 +222,11 @@ fn rigs(a: RigsArgs) -> Result<()> {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::Paper { out, family: Some(dir), seed, .. } => {
+        Cmd::Paper { out, family: Some(dir), seed, tune_filter, .. } => {
             let rigs = host_sim::rigs::load_family(&dir)?;
-            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, &out)?, &out)
+            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, tune_filter, &out)?, &out)
         }
-        Cmd::Paper { out, params, seed, observer, family: None } => paper(out, params, seed, observer),
+        Cmd::Paper { out, params, seed, observer, family: None, .. } => paper(out, params, seed, observer),
         Cmd::Faults { out, family: Some(dir), .. } => {
             let rigs = host_sim::rigs::load_family(&dir)?;
             family_done(host_sim::fault_injection::family::run_family(&rigs, &dir, &out)?, &out)
