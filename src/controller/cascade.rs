@@ -263,14 +263,11 @@ impl Controller {
         match s.load_cell_force_n {
             // The load cell sits beyond the nut and the seal: it feels the
             // payload's inertia but none of the friction.
-            Some(f) => {
+            Some(f) if !self.params.compensation.force_from_estimate => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
-            None => {
-                // The estimate reads friction through the same torque-to-force
-                // scaling as the load, so the fed-forward torque goes with it.
-                let friction_n = self.friction_ff_n_m * self.params.drive_train.screw_efficiency / self.params.metres_per_rad();
-                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n + friction_n, dt);
+            _ => {
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, planned_m_s, inertial_n, dt);
             }
         }
     }
