@@ -27,16 +27,18 @@ const P: usize = 7;
 /// spalled stretch of the screw) error of the nominal scales with.
 fn row(s: &Segment, a: usize, e: usize) -> [f64; P] {
     let n = (e - a).max(1) as f64;
+    // A segment may lack a signal (a synthetic one, or no scale): zeros.
+    let at = |v: &Vec<f64>, i: usize| v.get(i).copied().unwrap_or(0.0);
     let mean = |f: &dyn Fn(usize) -> f64| (a..e).map(f).sum::<f64>() / n;
     let mv = |i: usize| s.weight(TORQUE, i);
     [
         1.0,
         mean(&mv),
-        mean(&|i| mv(i) * s.dir[i]),
-        mean(&|i| s.a[i]),
-        mean(&|i| s.v[i]),
-        mean(&|i| s.f_load[i]),
-        mean(&|i| s.x[i]),
+        mean(&|i| mv(i) * at(&s.dir, i)),
+        mean(&|i| at(&s.a, i)),
+        mean(&|i| at(&s.v, i)),
+        mean(&|i| at(&s.f_load, i)),
+        mean(&|i| at(&s.x, i)),
     ]
 }
 

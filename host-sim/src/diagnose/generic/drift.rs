@@ -33,6 +33,11 @@ pub const CV_BLOCK_S: f64 = 0.5;
 /// Points (of the remainder's RMS shrink, cross-validated on training) the
 /// drifting gain must add over a constant gain per run.
 pub const OVER_CONSTANT_PTS: f64 = 10.0;
+/// The most a gain may move over the training runs and still be a drift
+/// of a gain, %: magnets lose ≈ 0.1 %/K (NdFeB 0.12, SmCo 0.04), under
+/// 20 % from cold to their limit; a course beyond this is a slow signal
+/// of another kind the gain is bent to follow.
+pub const MAX_GAIN_CHANGE_PCT: f64 = 50.0;
 
 /// The weights of the hat functions on knots `KNOT_S` apart at `t` s from
 /// the segment's start: (knot index, weight), at most two.
@@ -120,17 +125,25 @@ fn with_temperature(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], re
         n.iter().map(|v| vec![(0, *v)]).collect()
     });
     let own_pts = shrink(base_t, after_t) - shrink(base_t, const_t);
+    let (t_lo, t_hi) = train.iter().flat_map(|s| &s.temperature_c).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(*t), b.max(*t)));
+    let change_pct = 100.0 * b.get(1).copied().unwrap_or(0.0).abs() * (t_hi - t_lo).max(0.0);
+    let refused = if own_pts < OVER_CONSTANT_PTS {
+        Some(format!("on training a constant gain explains within {OVER_CONSTANT_PTS} points as much as one following the temperature ({own_pts:.1} points less): a gain error, not a drift"))
+    } else if change_pct > MAX_GAIN_CHANGE_PCT {
+        Some(format!("the gain would move by {change_pct:.0} % over the logged temperatures (a drifting gain moves under {MAX_GAIN_CHANGE_PCT:.0} %): a slow signal of another kind"))
+    } else {
+        None
+    };
     let mut g = GenericFit {
         class: "gain_drift".into(),
         channel: CHANNELS[c].into(),
         primary_shrink_pct: shrink(nominal_rms_h, after_h),
         remainder_shrink_pct: shrink(base_h, after_h),
         train_shrink_pct: shrink(base_t, after_t),
-        refused: (own_pts < OVER_CONSTANT_PTS).then(|| {
-            format!("on training a constant gain explains within {OVER_CONSTANT_PTS} points as much as one following the temperature ({own_pts:.1} points less): a gain error, not a drift")
-        }),
+        refused,
         ..Default::default()
     };
+    g.params.insert("gain_change_pct".into(), change_pct);
     g.params.insert("gain_per_k".into(), b.get(1).copied().unwrap_or(0.0));
     g.params.insert("gain_at_mean_temperature".into(), b.first().copied().unwrap_or(0.0));
     g.params.insert("mean_temperature_c".into(), t_ref);
@@ -221,19 +234,25 @@ pub fn fit(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Rem
         0.0
     };
     let own_pts = shrink(base_t, after_t) - shrink(base_t, const_t);
+    let change_pct = if hi >= lo { 100.0 * (hi - lo) } else { 0.0 };
+    let refused = if own_pts < OVER_CONSTANT_PTS {
+        Some(format!("on training a constant gain per run explains within {OVER_CONSTANT_PTS} points as much ({own_pts:.1} points less): a gain error, not a drift"))
+    } else if change_pct > MAX_GAIN_CHANGE_PCT {
+        Some(format!("the gain would move by {change_pct:.0} % over a run (a drifting gain moves under {MAX_GAIN_CHANGE_PCT:.0} %): a slow signal of another kind"))
+    } else {
+        None
+    };
     let mut g = GenericFit {
         class: "gain_drift".into(),
         channel: CHANNELS[c].into(),
         primary_shrink_pct: shrink(nominal_rms_h, after_h),
         remainder_shrink_pct: shrink(base_h, after_h),
         train_shrink_pct: shrink(base_t, after_t),
-        refused: (own_pts < OVER_CONSTANT_PTS).then(|| {
-            format!("on training a constant gain per run explains within {OVER_CONSTANT_PTS} points as much ({own_pts:.1} points less): a gain error, not a drift")
-        }),
+        refused,
         ..Default::default()
     };
     g.params.insert("drift_per_s".into(), slope);
-    g.params.insert("gain_change_pct".into(), if hi >= lo { 100.0 * (hi - lo) } else { 0.0 });
+    g.params.insert("gain_change_pct".into(), change_pct);
     g.params.insert("over_constant_gain_points".into(), own_pts);
     Some(g)
 }
