@@ -76,15 +76,15 @@ impl SetpointStream {
         self.interval_ticks
     }
 
-    /// The reference has reached the newest setpoint and carried on along
-    /// its velocity for one more expected interval, and still no setpoint
-    /// came: the stream is lost.
+    /// The reference reached the newest setpoint one expected interval ago
+    /// (and has been decelerating since), and still no setpoint came: the
+    /// stream is lost.
     pub fn lost(&self) -> bool {
         self.active && self.since_ticks > self.interval_ticks.saturating_mul(2)
     }
 
-    /// Velocity of the newest setpoint (what the reference carries on with
-    /// once it has reached it), m/s.
+    /// Velocity of the newest setpoint (what the reference has when it
+    /// reaches it), m/s.
     pub fn velocity_m_s(&self) -> f32 {
         self.to.velocity_m_s
     }
