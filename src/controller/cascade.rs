@@ -107,7 +107,7 @@ impl Controller {
     }
 
     pub(super) fn current_period(&mut self, s: &SensorSample, rotor: RotorState) -> PwmCommand {
-        let out = self.current_loop.step(&self.params, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
+        let out = self.current_loop.step(&self.params, self.derived.current_timing, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
         self.current_dq = out.current_dq;
         self.voltage_dq = out.voltage_dq;
         if out.voltage_limited {
@@ -313,7 +313,7 @@ impl Controller {
         let mut limits = self.limits;
         limits.insert(self.pending_limits);
         self.telemetry = Telemetry {
-            time_s: self.tick as f32 * self.derived.pwm_period_s,
+            time_s: self.tick as f32 * self.derived.current_timing.period_s,
             mode: self.mode,
             position_reference_m: self.position_reference_m,
             position_command_m: self.position_command_m,
