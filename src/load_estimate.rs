@@ -6,7 +6,7 @@ use crate::motion::speed_loop::{coulomb_friction_n_m, friction_direction};
 use crate::params::ControlParams;
 
 /// First-order low-passed force estimate at the nut.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct LoadEstimator {
     /// Low-passed force without the fed-forward part.
     slow_n: f32,
