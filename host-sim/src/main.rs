@@ -87,6 +87,11 @@ enum Cmd {
     /// The retraining route timed end to end (logs → dataset → train →
     /// upload → verify on the simulated drive): summary.json.
     ObserverRoute(host_sim::trainer::route::RouteArgs),
+    /// The observer on the rigs a second cylinder could be (stiffness,
+    /// friction, payload, lead, combined), built from the rig file: the
+    /// shipped weights and weights retrained from each rig's own logs, on
+    /// a held-out run. summary.json; non-zero exit when a bar is missed.
+    ObserverBench(host_sim::trainer::bench::BenchArgs),
     /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
@@ -237,6 +242,7 @@ fn main() -> Result<()> {
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
         Cmd::ObserverRoute(args) => host_sim::trainer::route::run(&args).map(|_| ()),
+        Cmd::ObserverBench(args) => host_sim::trainer::bench::run(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Tune(args) => host_sim::tuning::cli::run(args),
