@@ -42,6 +42,10 @@ pub struct BenchArgs {
     /// Stroke cycles logged per payload for retraining.
     #[arg(long, default_value_t = 2)]
     pub cycles: usize,
+    /// Weights to evaluate in the "shipped" group instead of the compiled
+    /// ones: a trainer's model.json, before it is compiled in.
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
     /// Sensor-noise seed of the evaluation run.
     #[arg(long, default_value_t = EVAL_SEED)]
     pub seed: u64,
@@ -53,7 +57,13 @@ type Group = (&'static str, &'static str, fn(&[rigs::BenchRig], &BenchArgs) -> R
 /// The figure groups, in column order.
 pub fn groups() -> Vec<Group> {
     vec![
-        ("shipped", "compiled weights, friction identified into the feedforward", |r, a| shipped::run(r, a.seed)),
+        ("shipped", "compiled weights, friction identified into the feedforward", |r, a| {
+            let weights = match &a.weights {
+                Some(p) => Some(&*Box::leak(Box::new(crate::tool::observer::read_model(p)?))),
+                None => None,
+            };
+            shipped::run(r, weights, a.seed)
+        }),
         ("retrained", "weights retrained from the rig's own logs (route: identify friction, log, dataset-from-logs, train --hidden 8, upload, verify)", |r, a| {
             retrained::run(r, a.cycles, a.seed, &a.out)
         }),

@@ -8,13 +8,15 @@ use super::eval::{evaluate, Row};
 use super::rigs::{shipped_bar_pct, BenchRig};
 use anyhow::{Context, Result};
 use rayon::prelude::*;
+use servo_core::observer::block::Weights;
 
-pub fn run(rigs: &[BenchRig], seed: u64) -> Result<Vec<Row>> {
+/// `weights`: `None` for the compiled model.
+pub fn run(rigs: &[BenchRig], weights: Option<&'static Weights>, seed: u64) -> Result<Vec<Row>> {
     rigs.par_iter()
         .map(|r| {
             let (tuned, ident) = crate::tuning::identify_friction_sim(&r.rig, r.seed).with_context(|| r.name)?;
-            let mut row = evaluate(r.name, &tuned, None, seed, shipped_bar_pct(r.name))?;
-            let as_file = evaluate(r.name, &r.rig, None, seed, None)?;
+            let mut row = evaluate(r.name, &tuned, weights, seed, shipped_bar_pct(r.name))?;
+            let as_file = evaluate(r.name, &r.rig, weights, seed, None)?;
             row.details = serde_json::json!({
                 "friction_feedforward": crate::tuning::friction_param_set_lines(&tuned.control),
                 "identified_coulomb_n_m": ident.coulomb_n_m,
