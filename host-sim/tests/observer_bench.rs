@@ -18,7 +18,7 @@ fn no_training_cycle_is_the_papers_run() {
     }
     assert!(is_paper_trajectory(0.45, 30.0));
     // Asked for it, the dataset refuses, naming the cycle.
-    let paper = DatasetSpec { tilt_swings_deg: vec![30.0], payload_scales: vec![1.0], tops_m: vec![0.45], family_rigs: 0, seed: 3 };
+    let paper = DatasetSpec { tilt_swings_deg: vec![30.0], payload_scales: vec![1.0], tops_m: vec![0.45], family_rigs: 0, identify_friction: false, seed: 3 };
     let e = generate(&RigConfig::nominal().unwrap(), &paper).unwrap_err();
     assert!(format!("{e:#}").contains("the paper's run"), "{e:#}");
 }

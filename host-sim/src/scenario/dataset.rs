@@ -51,6 +51,9 @@ pub struct DatasetSpec {
     pub tops_m: Vec<f64>,
     /// Rigs drawn within [`family_spec`] besides the rig file's own.
     pub family_rigs: usize,
+    /// Each rig's friction identified into its feedforward first (else
+    /// the rig file's `[control]` as it is).
+    pub identify_friction: bool,
     pub seed: u64,
 }
 
@@ -65,6 +68,7 @@ impl Default for DatasetSpec {
             payload_scales: vec![0.02, 0.1, 0.25, 0.5, 0.75, 1.0],
             tops_m: vec![0.40, 0.44, 0.47, 0.49],
             family_rigs: 16,
+            identify_friction: true,
             seed: 11,
         }
     }
@@ -135,7 +139,7 @@ pub fn family_draws(spec: &DatasetSpec) -> Vec<(String, Draw)> {
 }
 
 /// The rigs of a dataset ([`family_draws`]), each with the friction
-/// `tune identify` finds written into its feedforward.
+/// `tune identify` finds written into its feedforward (when the spec asks).
 pub fn dataset_rigs(rig: &RigConfig, spec: &DatasetSpec) -> Result<Vec<(String, RigConfig)>> {
     let draws = family_draws(spec);
     draws
@@ -143,6 +147,9 @@ pub fn dataset_rigs(rig: &RigConfig, spec: &DatasetSpec) -> Result<Vec<(String, 
         .enumerate()
         .map(|(i, (name, d))| {
             let drawn = d.apply(rig);
+            if !spec.identify_friction {
+                return Ok((name, drawn));
+            }
             let (tuned, _) = crate::tuning::identify_friction_sim(&drawn, spec.seed.wrapping_mul(100).wrapping_add(i as u64))
                 .with_context(|| format!("{name}: identifying its friction"))?;
             Ok((name, tuned))

@@ -90,6 +90,11 @@ pub enum TuneCmd {
         /// Diagnostic: propose and check even asks the limits refuse.
         #[arg(long)]
         unchecked: bool,
+        /// The bench on every rig of a family (`host-sim rigs`): a row per
+        /// rig, every loop result and the worst case in summary.json,
+        /// family.md; fails when a rig does.
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
 }
 
@@ -176,7 +181,19 @@ pub fn run(a: TuneArgs) -> Result<()> {
             println!("wrote {}/proposal.toml, summary.json, step_*.csv/png", out.display());
             Ok(())
         }
-        TuneCmd::Bench { out, params, cases, unchecked } => {
+        TuneCmd::Bench { out, family: Some(dir), cases, unchecked, .. } => {
+            super::feasible::set_enforced(!unchecked);
+            let rigs = crate::rigs::load_family(&dir)?;
+            let s = super::family::bench_family(&rigs, &dir, cases.as_deref(), &out)?;
+            print!("{}", std::fs::read_to_string(out.join("family.md"))?);
+            println!("worst: {}", serde_json::to_string_pretty(&s["worst"])?);
+            println!("{} of {} rigs pass; wrote {}/{{summary.json, family.md}} and a folder per rig", s["rigs_passed"], s["rigs"], out.display());
+            if s["rigs_passed"] != s["rigs"] {
+                bail!("tune bench: rigs failed: {}", s["rigs_failed"]);
+            }
+            Ok(())
+        }
+        TuneCmd::Bench { out, params, cases, unchecked, family: None } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
             super::feasible::set_enforced(!unchecked);
             let s = bench(&rig, &out, cases.as_deref())?;

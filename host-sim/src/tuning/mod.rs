@@ -6,7 +6,9 @@
 
 pub mod cli;
 pub mod design;
+pub mod family;
 pub mod feasible;
+pub mod filter;
 pub mod identify;
 pub mod measure;
 pub mod model;
@@ -365,7 +367,7 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     };
     let (cb, sb, pb) = (asked.current_bw_hz, asked.speed_bw_hz, asked.position_bw_hz);
     let (cur_from, cur_to) = (cb / 10.0, (4.0 * cb).min(0.2 * pwm));
-    let (spd_from, spd_to) = (sb / 4.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
+    let (spd_from, spd_to) = (sb / 2.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
     let (pos_from, pos_to) = (pb / 4.0, (5.0 * pb).min(0.1 * pwm / f64::from(p.rates.position_loop_divider)));
     let cur_dur = fit_dur(cur_to, (4.0 / cur_from).clamp(0.1, 0.4), 3.0);
     let spd_dur = fit_dur(spd_to, (4.0 / spd_from).clamp(2.0, 8.0), 3.0);
