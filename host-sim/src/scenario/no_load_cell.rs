@@ -236,5 +236,8 @@ pub fn run_cli(a: &NoLoadCellArgs) -> Result<serde_json::Value> {
     });
     crate::report::write_summary(&summary, &a.out)?;
     println!("{}", serde_json::to_string_pretty(&summary)?);
+    if worst < BAR_PCT {
+        bail!("max terminal error reduction {worst:.1} % on a held-out run, below the {BAR_PCT:.0} % bar");
+    }
     Ok(summary)
 }
