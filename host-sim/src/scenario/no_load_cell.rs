@@ -138,7 +138,14 @@ pub fn estimate_error_n(rig: &RigConfig, cycle: &StrokeCycle) -> Result<(f64, f6
 
 /// Trains the estimate model on the training cycles; its `model.json`.
 fn train(rig: &RigConfig, out: &std::path::Path) -> Result<(PathBuf, serde_json::Value)> {
-    let spec = DatasetSpec { tilt_swings_deg: TRAIN_TILT_SWINGS_DEG.to_vec(), payload_scales: TRAIN_PAYLOAD_SCALES.to_vec(), seed: TRAIN_SEED };
+    let spec = DatasetSpec {
+        tilt_swings_deg: TRAIN_TILT_SWINGS_DEG.to_vec(),
+        payload_scales: TRAIN_PAYLOAD_SCALES.to_vec(),
+        tops_m: vec![0.45],
+        family_rigs: 0,
+        identify_friction: false,
+        seed: TRAIN_SEED,
+    };
     let t = Instant::now();
     let rows = dataset::generate(rig, &spec)?;
     let dir = out.join("dataset");
