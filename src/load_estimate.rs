@@ -15,6 +15,12 @@ pub struct LoadEstimator {
     since_reset_s: f32,
 }
 
+impl Default for LoadEstimator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl LoadEstimator {
     pub const fn new() -> Self {
         Self { slow_n: 0.0, force_n: 0.0, since_reset_s: 0.0 }
