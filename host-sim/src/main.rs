@@ -7,6 +7,7 @@ use host_sim::config::RigConfig;
 use host_sim::report::{self, csv_out, metrics, plots};
 use host_sim::rigs::FamilySpec;
 use host_sim::scenario::dataset::{self, DatasetSpec};
+use host_sim::scenario::no_load_cell::ForceSource;
 use host_sim::scenario::{run_stroke_cycle, StrokeCycle};
 use std::path::PathBuf;
 
@@ -91,6 +92,10 @@ enum Cmd {
     /// The retraining route timed end to end (logs → dataset → train →
     /// upload → verify on the simulated drive): summary.json.
     ObserverRoute(host_sim::trainer::route::RouteArgs),
+    /// The observer without a load cell: a model trained on the drive's
+    /// current-based force estimate, the paper's run (held out by
+    /// trajectory) compensated with it: summary.json.
+    ObserverNoLoadCell(host_sim::scenario::no_load_cell::NoLoadCellArgs),
     /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
@@ -136,6 +141,10 @@ enum Cmd {
         payload_scales: Vec<f64>,
         #[arg(long, default_value_t = DatasetSpec::default().seed)]
         seed: u64,
+        /// The observer's force input the data is recorded with (sets
+        /// control.compensation.force_from_estimate); default: the rig file's.
+        #[arg(long, value_enum)]
+        force_source: Option<ForceSource>,
     },
 }
 
@@ -241,6 +250,7 @@ fn main() -> Result<()> {
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
         Cmd::ObserverRoute(args) => host_sim::trainer::route::run(&args).map(|_| ()),
+        Cmd::ObserverNoLoadCell(args) => host_sim::scenario::no_load_cell::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Tune(args) => host_sim::tuning::cli::run(args),
@@ -257,13 +267,13 @@ fn main() -> Result<()> {
             Ok(())
         }
         Cmd::Rigs(a) => rigs(a),
-        Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
-            dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
+        Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed, force_source } => {
+            dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed }, force_source)
         }
     }
 }
 
-fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<()> {
+fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec, force_source: Option<ForceSource>) -> Result<()> {
     for (name, values) in [("--tilt-swings-deg", &spec.tilt_swings_deg), ("--payload-scales", &spec.payload_scales)] {
         if values.is_empty() || values.iter().any(|v| !v.is_finite() || *v < 0.0) {
             anyhow::bail!("{name}: expected a comma-separated list of finite, non-negative numbers, got {values:?}");
@@ -275,7 +285,10 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<(
     if let Some(s) = spec.tilt_swings_deg.iter().find(|s| **s > 90.0) {
         anyhow::bail!("--tilt-swings-deg: {s}° would tilt past horizontal");
     }
-    let rig = RigConfig::load_or_nominal(params.as_ref())?;
+    let mut rig = RigConfig::load_or_nominal(params.as_ref())?;
+    if let Some(source) = force_source {
+        source.apply(&mut rig);
+    }
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let t0 = std::time::Instant::now();
     let rows = dataset::generate(&rig, &spec)?;
@@ -289,6 +302,7 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<(
         "tilt_swings_deg": spec.tilt_swings_deg,
         "payload_scales": spec.payload_scales,
         "seed": spec.seed,
+        "force_from_estimate": rig.control.compensation.force_from_estimate,
         "terminal_error_min_m": rows.iter().map(|r| r.terminal_error_m).fold(f64::INFINITY, f64::min),
         "terminal_error_max_m": rows.iter().map(|r| r.terminal_error_m).fold(f64::NEG_INFINITY, f64::max),
         "wall_s": t0.elapsed().as_secs_f64(),

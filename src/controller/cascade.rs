@@ -107,7 +107,7 @@ impl Controller {
     }
 
     pub(super) fn current_period(&mut self, s: &SensorSample, rotor: RotorState) -> PwmCommand {
-        let out = self.current_loop.step(&self.params, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
+        let out = self.current_loop.step(&self.params, self.derived.current_timing, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
         self.current_dq = out.current_dq;
         self.voltage_dq = out.voltage_dq;
         if out.voltage_limited {
@@ -263,14 +263,11 @@ impl Controller {
         match s.load_cell_force_n {
             // The load cell sits beyond the nut and the seal: it feels the
             // payload's inertia but none of the friction.
-            Some(f) => {
+            Some(f) if !self.params.compensation.force_from_estimate => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
-            None => {
-                // The estimate reads friction through the same torque-to-force
-                // scaling as the load, so the fed-forward torque goes with it.
-                let friction_n = self.friction_ff_n_m * self.params.drive_train.screw_efficiency / self.params.metres_per_rad();
-                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n + friction_n, dt);
+            _ => {
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, planned_m_s, inertial_n, dt);
             }
         }
     }
@@ -316,7 +313,7 @@ impl Controller {
         let mut limits = self.limits;
         limits.insert(self.pending_limits);
         self.telemetry = Telemetry {
-            time_s: self.tick as f32 * self.derived.pwm_period_s,
+            time_s: self.tick as f32 * self.derived.current_timing.period_s,
             mode: self.mode,
             position_reference_m: self.position_reference_m,
             position_command_m: self.position_command_m,
