@@ -7,6 +7,8 @@ use host_sim::config::RigConfig;
 use host_sim::scenario::no_load_cell::{reduction, without_load_cell, BAR_PCT};
 use host_sim::scenario::stroke_cycle::{run_stroke_cycle, Direction, RunTrace, StrokeCycle};
 use host_sim::tool::observer::read_model;
+use servo_core::observer::block;
+use servo_core::observer::model::{HIDDEN, INPUTS};
 use std::path::Path;
 
 fn nominal() -> RigConfig {
@@ -91,6 +93,11 @@ fn the_shipped_estimate_weights_meet_the_bar_on_the_held_out_paper_run() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/observer/no_load_cell_model.json");
     let w = Box::leak(Box::new(read_model(&path).expect("the shipped weights read")));
     let rig = without_load_cell(&nominal());
+    // What the drive checks when the file is uploaded (shape, hash,
+    // normalisation, the shift at the corners of the trained range).
+    let words = block::to_words(w);
+    let shift_max = rig.control.faults.observer_shift_max_m;
+    block::validate(INPUTS as u16, HIDDEN as u16, &block::STRUCTURE_HASH, &words, shift_max).expect("a drive accepts the shipped file");
     let r = reduction(&rig, &StrokeCycle::paper(6501), Some(w)).expect("runs");
     assert!(r.reduction_pct >= BAR_PCT, "{r:?}");
     // The compiled load-cell model on the same input does less: the

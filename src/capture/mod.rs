@@ -313,12 +313,6 @@ impl Capture {
         self.signal.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
-    /// Signals per frame.
-    #[inline(always)]
-    pub fn count(&self) -> u8 {
-        self.count
-    }
-
     /// Slot `K`'s signal.
     #[inline(always)]
     pub fn signal<const K: usize>(&self) -> Signal {
@@ -374,7 +368,8 @@ impl Capture {
     #[inline(never)]
     pub fn flush(&mut self) {
         // One copy per signal count, its slots written out: the core is
-        // built for size, so the compiler would keep a loop over them.
+        // built for size, so the compiler would keep a loop over them. The
+        // count is 1 to 4: `& 3` makes the four cases a jump table (4 → 0).
         match self.count & 3 {
             0 => self.flush_frames::<4>(),
             1 => self.flush_frames::<1>(),
