@@ -159,14 +159,19 @@ impl Controller {
     /// overshoot and ring.
     #[inline(never)]
     fn stream_reference(&mut self) -> TrajectorySample {
-        let a_stop = self.params.faults.stop_deceleration_m_s2;
-        let lead_s = crate::motion::stream::torque_path_delay_s(&self.params);
-        let mut r = self.stream.advance(self.derived.position_period_s, a_stop, lead_s);
+        let shaping = crate::motion::stream_stop::StopShaping::of(&self.params);
+        let mut r = self.stream.advance(self.derived.position_period_s, &shaping);
         if self.stream.lost_at_rest() {
             self.raise(FaultSet::STREAM_TIMEOUT);
+            if self.mode == Mode::Stopping {
+                // The stream's own stop has come to rest: the controlled
+                // stop holds there, not where the motor happens to be while
+                // the payload still swings on the rod (a step of tens of µm).
+                self.stop = crate::motion::StopRamp::new(r.position_m, 0.0, self.params.faults.stop_deceleration_m_s2);
+            }
             return r;
         }
-        if self.stream.stopping() {
+        if self.stream.decelerating() {
             return r;
         }
         let a_max = self.params.trajectory.max_acceleration_m_s2;
@@ -252,7 +257,15 @@ impl Controller {
         } else {
             r.velocity_m_s
         };
-        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, planned_m_s, self.load.slow_force_n());
+        let nut_force_n = if self.stream.active() {
+            // The nut carries the payload's inertial force too: a stream's
+            // stop (5 m/s² against the rated mass, half the weight) changes
+            // the screw's load-proportional friction by a tenth of that.
+            self.load.slow_force_n() + self.params.drive_train.moving_mass_kg * r.acceleration_m_s2
+        } else {
+            self.load.slow_force_n()
+        };
+        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, planned_m_s, nut_force_n);
         if self.stream.active() {
             // A streamed force feedforward: the load the platform expects,
             // as torque at the screw.

@@ -470,7 +470,7 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             std::fs::write(&summary, serde_json::to_string_pretty(&json)?)?;
             println!("figures → {}", summary.display());
             if !r.faults.is_empty() {
-                bail!("{name}: faults latched: {}; next: `cmd clear-faults`, then `cmd enable`", r.faults.join(", "));
+                bail!("{}", stream::fault_advice(&name, &r.faults));
             }
             if let Some(first) = r.grouped().first() {
                 bail!("{name}: {} points refused or bounded (first: {first})", r.refusals.len());

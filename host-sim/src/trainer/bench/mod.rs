@@ -4,7 +4,9 @@
 //! held-out evaluation run (`eval.rs`):
 //! - `shipped.rs`: the compiled weights;
 //! - `retrained.rs`: weights retrained from the rig's own logs through the
-//!   documented route.
+//!   documented route;
+//! - `no_load_cell.rs`: the load cell off, the observer on the drive's
+//!   force estimate with the shipped estimate weights.
 //!
 //! A new figure group is a file with a `run` returning its rows, and one
 //! entry in [`groups`]. Writes `summary.json`: the rigs, a table per rig
@@ -12,6 +14,7 @@
 //! is missed.
 
 pub mod eval;
+pub mod no_load_cell;
 pub mod retrained;
 pub mod rigs;
 pub mod shipped;
@@ -66,6 +69,9 @@ pub fn groups() -> Vec<Group> {
         }),
         ("retrained", "weights retrained from the rig's own logs (route: identify friction, log, dataset-from-logs, train --hidden 8, upload, verify)", |r, a| {
             retrained::run(r, a.cycles, a.seed, &a.out)
+        }),
+        ("no_load_cell", "no load cell: the shipped estimate weights on the drive's current-based force estimate, friction identified", |r, a| {
+            no_load_cell::run(r, a.seed)
         }),
     ]
 }
