@@ -40,7 +40,8 @@ fn a_collision_starts_a_controlled_stop_against_the_obstacle() {
 /// A stall is a stall on a stiffer structure and a heavier payload too:
 /// the rotor bounces back off the obstacle there, its back-EMF passing
 /// through zero, which must not read as a slipping rotor with a lost
-/// encoder (bridge off, the rod falling at 0.27 m/s).
+/// encoder (bridge off, the rod falling at 0.27 m/s, faster than the
+/// 0.2 m/s it struck with).
 #[test]
 fn a_stall_is_a_controlled_stop_on_the_family_corners() {
     let base = rig();
@@ -50,7 +51,8 @@ fn a_stall_is_a_controlled_stop_on_the_family_corners() {
         let e = &catalog::stall(&r).expect;
         assert!(o.violations(e).is_empty(), "{name}: {:?}\n{}", o.violations(e), o.brief());
         let v = o.rod_speed_after_latch_max_m_s.unwrap();
-        assert!(v <= catalog::STALL_ROD_SPEED_MAX_M_S, "{name}: {v} m/s");
+        let impact = o.impact_speed_m_s.unwrap();
+        assert!(v <= impact, "{name}: {v} m/s after the latch, {impact} m/s impact");
     }
 }
 
