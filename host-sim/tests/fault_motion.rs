@@ -56,6 +56,28 @@ fn a_stall_is_a_controlled_stop_on_the_family_corners() {
     }
 }
 
+/// A stall on light to heavy payloads and a softer structure: after the
+/// latch the rod only rings on the contact, never faster than it struck,
+/// and the drive holds it in a controlled stop.
+#[test]
+fn a_stall_holds_the_rod_on_every_payload() {
+    let base = rig();
+    let mut rigs: Vec<(String, host_sim::config::RigConfig)> = [0.02, 0.3, 0.66, 1.1]
+        .into_iter()
+        .map(|p| (format!("payload {p}, softer"), host_sim::rigs::Draw { payload: p, stiffness: 0.88, ..host_sim::rigs::Draw::BASE }.apply(&base)))
+        .collect();
+    rigs.extend(seen_family_rigs().into_iter().map(|(n, r)| (n.to_string(), r)));
+    for (payload, r) in rigs {
+        let sc = catalog::stall(&r);
+        let o = host_sim::fault_injection::run(&sc).unwrap();
+        assert!(o.violations(&sc.expect).is_empty(), "{payload}: {:?}\n{}", o.violations(&sc.expect), o.brief());
+        assert_controlled_stop_to_rest(&o, 1e-3);
+        let impact = o.impact_speed_m_s.unwrap();
+        // It struck at the move's cruise speed.
+        assert!((impact - 0.2).abs() < 0.01, "{payload}: impact {impact} m/s");
+    }
+}
+
 /// I²t with the winding time constant shortened to 1 s and 1.5× the
 /// continuous current needed: the current limit folds back, the load can
 /// no longer be held, and a following error starts a controlled stop. The
