@@ -63,8 +63,9 @@ pub struct Telemetry {
     pub bus_voltage_v: f32,
     /// Linear-scale (piston-rod) position, if a scale is fitted.
     pub terminal_position_m: Option<f32>,
-    /// Axial force from the load cell when fitted, else estimated from i_q;
-    /// low-passed at `load_estimate.filter_hz` (the observer's input).
+    /// The observer's force input: the load cell when fitted, or the
+    /// estimate from i_q when none is or `compensation.force_from_estimate`
+    /// selects it; low-passed at `load_estimate.filter_hz`.
     pub load_force_estimate_n: f32,
     pub faults: FaultSet,
     pub limits: LimitFlags,

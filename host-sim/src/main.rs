@@ -7,6 +7,7 @@ use host_sim::config::RigConfig;
 use host_sim::report::{self, csv_out, metrics, plots};
 use host_sim::rigs::FamilySpec;
 use host_sim::scenario::dataset::{self, DatasetSpec};
+use host_sim::scenario::no_load_cell::ForceSource;
 use host_sim::scenario::{run_stroke_cycle, StrokeCycle};
 use std::path::PathBuf;
 
@@ -40,6 +41,10 @@ enum Cmd {
         /// per rig and the worst case in summary.json, family.md.
         #[arg(long, conflicts_with_all = ["params", "observer"])]
         family: Option<PathBuf>,
+        /// With --family: choose each rig's torque filter by its own test
+        /// moves first (docs/tuning.md, "The torque filter per unit").
+        #[arg(long, requires = "family")]
+        tune_filter: bool,
     },
     /// Fault injection: every scenario of docs/reliability.md, closed loop.
     /// Writes summary.json, reliability_measured.md and a trace per scenario.
@@ -87,6 +92,15 @@ enum Cmd {
     /// The retraining route timed end to end (logs → dataset → train →
     /// upload → verify on the simulated drive): summary.json.
     ObserverRoute(host_sim::trainer::route::RouteArgs),
+    /// The observer on the rigs a second cylinder could be (stiffness,
+    /// friction, payload, lead, combined), built from the rig file: the
+    /// shipped weights and weights retrained from each rig's own logs, on
+    /// a held-out run. summary.json; non-zero exit when a bar is missed.
+    ObserverBench(host_sim::trainer::bench::BenchArgs),
+    /// The observer without a load cell: a model trained on the drive's
+    /// current-based force estimate, the paper's run (held out by
+    /// trajectory) compensated with it: summary.json.
+    ObserverNoLoadCell(host_sim::scenario::no_load_cell::NoLoadCellArgs),
     /// Diagnose the sim-to-real gap of a measured log: where it
     /// lies, which unmodelled effect causes it, how far it shrinks.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
@@ -130,8 +144,20 @@ enum Cmd {
         /// Payload scales relative to rated (comma-separated).
         #[arg(long, value_delimiter = ',', default_values_t = DatasetSpec::default().payload_scales)]
         payload_scales: Vec<f64>,
+        /// Stroke tops in metres (comma-separated), used in turn; never the
+        /// paper's 0.45 m with its 30° swing, the held-out evaluation run.
+        #[arg(long, value_delimiter = ',', default_values_t = DatasetSpec::default().tops_m)]
+        tops_m: Vec<f64>,
+        /// Rigs drawn within a second unit's tolerances (stiffness ±15 %,
+        /// friction ±30 %, lead within C7) besides the rig file's own.
+        #[arg(long, default_value_t = DatasetSpec::default().family_rigs)]
+        family_rigs: usize,
         #[arg(long, default_value_t = DatasetSpec::default().seed)]
         seed: u64,
+        /// The observer's force input the data is recorded with (sets
+        /// control.compensation.force_from_estimate); default: the rig file's.
+        #[arg(long, value_enum)]
+        force_source: Option<ForceSource>,
     },
 }
 
@@ -209,11 +235,11 @@ fn rigs(a: RigsArgs) -> Result<()> {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::Paper { out, family: Some(dir), seed, .. } => {
+        Cmd::Paper { out, family: Some(dir), seed, tune_filter, .. } => {
             let rigs = host_sim::rigs::load_family(&dir)?;
-            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, &out)?, &out)
+            family_done(host_sim::scenario::family::run_family(&rigs, &dir, seed, tune_filter, &out)?, &out)
         }
-        Cmd::Paper { out, params, seed, observer, family: None } => paper(out, params, seed, observer),
+        Cmd::Paper { out, params, seed, observer, family: None, .. } => paper(out, params, seed, observer),
         Cmd::Faults { out, family: Some(dir), .. } => {
             let rigs = host_sim::rigs::load_family(&dir)?;
             family_done(host_sim::fault_injection::family::run_family(&rigs, &dir, &out)?, &out)
@@ -237,6 +263,8 @@ fn main() -> Result<()> {
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
         Cmd::ObserverRoute(args) => host_sim::trainer::route::run(&args).map(|_| ()),
+        Cmd::ObserverBench(args) => host_sim::trainer::bench::run(&args).map(|_| ()),
+        Cmd::ObserverNoLoadCell(args) => host_sim::scenario::no_load_cell::run_cli(&args).map(|_| ()),
         Cmd::Diagnose(args) => host_sim::diagnose::run_cli(&args),
         Cmd::Drive(args) => host_sim::tool::run_cli(args),
         Cmd::Tune(args) => host_sim::tuning::cli::run(args),
@@ -253,13 +281,13 @@ fn main() -> Result<()> {
             Ok(())
         }
         Cmd::Rigs(a) => rigs(a),
-        Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, seed } => {
-            dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, seed })
+        Cmd::Dataset { out, params, tilt_swings_deg, payload_scales, tops_m, family_rigs, seed, force_source } => {
+            dataset(out, params, DatasetSpec { tilt_swings_deg, payload_scales, tops_m, family_rigs, identify_friction: true, seed }, force_source)
         }
     }
 }
 
-fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<()> {
+fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec, force_source: Option<ForceSource>) -> Result<()> {
     for (name, values) in [("--tilt-swings-deg", &spec.tilt_swings_deg), ("--payload-scales", &spec.payload_scales)] {
         if values.is_empty() || values.iter().any(|v| !v.is_finite() || *v < 0.0) {
             anyhow::bail!("{name}: expected a comma-separated list of finite, non-negative numbers, got {values:?}");
@@ -268,10 +296,16 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<(
     if let Some(p) = spec.payload_scales.iter().find(|p| **p > 1.25) {
         anyhow::bail!("--payload-scales: {p} is above 1.25 × rated, beyond the drive's rating");
     }
+    if spec.tops_m.is_empty() || spec.tops_m.iter().any(|t| !(t.is_finite() && (0.05..=0.49).contains(t))) {
+        anyhow::bail!("--tops-m: expected stroke tops within 0.05–0.49 m, got {:?}", spec.tops_m);
+    }
     if let Some(s) = spec.tilt_swings_deg.iter().find(|s| **s > 90.0) {
         anyhow::bail!("--tilt-swings-deg: {s}° would tilt past horizontal");
     }
-    let rig = RigConfig::load_or_nominal(params.as_ref())?;
+    let mut rig = RigConfig::load_or_nominal(params.as_ref())?;
+    if let Some(source) = force_source {
+        source.apply(&mut rig);
+    }
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let t0 = std::time::Instant::now();
     let rows = dataset::generate(&rig, &spec)?;
@@ -284,7 +318,10 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec) -> Result<(
         "samples": rows.len(),
         "tilt_swings_deg": spec.tilt_swings_deg,
         "payload_scales": spec.payload_scales,
+        "tops_m": spec.tops_m,
+        "rigs": dataset::family_draws(&spec).into_iter().map(|(name, _)| name).collect::<Vec<_>>(),
         "seed": spec.seed,
+        "force_from_estimate": rig.control.compensation.force_from_estimate,
         "terminal_error_min_m": rows.iter().map(|r| r.terminal_error_m).fold(f64::INFINITY, f64::min),
         "terminal_error_max_m": rows.iter().map(|r| r.terminal_error_m).fold(f64::NEG_INFINITY, f64::max),
         "wall_s": t0.elapsed().as_secs_f64(),

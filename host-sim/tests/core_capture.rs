@@ -9,7 +9,7 @@ use host_sim::config::RigConfig;
 use host_sim::sim::{holding_vertical, ClosedLoop};
 use servo_core::capture::{resolution, CaptureStore, SignalList};
 use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, Signal};
-use servo_core::{Controller, FaultSet, Mode};
+use servo_core::{Controller, FaultSet, Mode, SensorSample};
 
 const X0_M: f64 = 0.25;
 
@@ -244,6 +244,46 @@ fn a_fault_triggers_a_capture_armed_for_it() {
     println!("|i| before the fault {before:.2} A (load alone {hold:.2} A), 33–35 ms after {last:.3} A");
     assert!((before - hold).abs() < 0.25 * hold, "hold current {before} A");
     assert!(last < 0.2, "current after the bridge went off {last} A");
+}
+
+/// Samples are staged as values and encoded into the ring in batches (at
+/// the speed-loop tick, or 4 frames at most). With the speed loop at every
+/// 8th period the staging fills between ticks, and a trigger given at an
+/// odd period finds frames staged: every sample must still land in its
+/// own place, the trigger sample the period after the command, and the
+/// record be whole the period its last sample is taken.
+#[test]
+fn staged_samples_land_in_their_places_whatever_the_batch() {
+    let rig = RigConfig::nominal().unwrap();
+    let mut p = rig.control;
+    p.rates.speed_loop_divider = 8;
+    p.rates.position_loop_divider = 40;
+    let mut c = Controller::try_new(p).unwrap();
+    c.attach_capture_store(store());
+    let signals = [Signal::BusVoltage, Signal::CurrentQ, Signal::BusVoltage];
+    c.capture_configure(&config(&signals, 1, 500, 123, CaptureTrigger::Command)).unwrap();
+    let trigger_at = 1001u64;
+    let mut ran = None;
+    for k in 0..3000u64 {
+        if k == trigger_at {
+            c.capture_trigger().unwrap();
+        }
+        c.step(&SensorSample::idle(ramp_v(k)));
+        if c.capture_status().state == CaptureState::Done {
+            ran = Some(k + 1);
+            break;
+        }
+    }
+    let st = c.capture_status();
+    assert_eq!((st.state, st.trigger_index, st.samples), (CaptureState::Done, 123, 500));
+    assert_eq!(ran, Some(trigger_at + 500 - 123));
+    for slot in [0u8, 2] {
+        let bus = read_all(&c, slot);
+        for (i, &v) in bus.iter().enumerate() {
+            assert_eq!(period_of(v), trigger_at as i64 - 123 + i as i64, "slot {slot}, sample {i}: {v} V");
+        }
+    }
+    assert!(read_all(&c, 1).iter().all(|&i| i == 0.0), "no current flows with the bridge off");
 }
 
 #[test]

@@ -104,5 +104,7 @@ fn a_refused_request_is_named_as_the_user_typed_it() {
     assert_eq!(request_text(&Request::ParamSet { index: kp, value: Value::F32(1e30) }), "param set control.speed_pi.kp 1e30");
     assert_eq!(request_text(&Request::ParamSet { index: kp, value: Value::F32(0.4) }), "param set control.speed_pi.kp 0.4");
     assert_eq!(request_text(&Request::Load), "param load");
-    assert_eq!(request_text(&Request::Command(DriveCommand::Enable)), "cmd Enable");
+    assert_eq!(request_text(&Request::Command(DriveCommand::Enable)), "cmd enable");
+    assert_eq!(request_text(&Request::Command(DriveCommand::MoveTo { position_m: -0.1 })), "move -0.1");
+    assert_eq!(request_text(&Request::Command(DriveCommand::ClearFaults)), "cmd clear-faults");
 }

@@ -265,3 +265,63 @@ fn a_step_test_is_captured_analysed_and_predicted() {
     let e = tool::test::capture_test(&mut c, &spec, 20_000.0).unwrap_err().to_string();
     assert!(e.contains("--duration <="), "{e}");
 }
+
+/// A client that pauses 0.5 s mid-stream: the drive stops the rod and
+/// latches `stream_timeout`; the points after the pause are refused as
+/// faults latched (not "not running", whose advice would be `enable`), and
+/// the tool's closing error names the fault, why, and `clear-faults` then
+/// `enable`.
+#[test]
+fn a_client_paused_mid_stream_is_told_the_fault_and_the_commands_that_resume() {
+    let mut o = host_sim::drive::DriveOptions::new(RigConfig::nominal().unwrap());
+    o.pace = host_sim::drive::Pace::Fast;
+    o.commissioned = true;
+    let (addr, stop, h) = host_sim::drive::spawn_local(o).unwrap();
+    let mut c = Client::connect(&host_sim::tool::client::Endpoint::Tcp(addr.to_string())).unwrap();
+    enabled(&mut c);
+    let point = |k: usize| StreamPoint { position_m: 0.25 + 0.02 * k as f32 * 1e-3, velocity_m_s: 0.02, force_n: None };
+    for k in 0..200 {
+        c.send(Request::Stream(point(k))).unwrap();
+    }
+    // The pause: longer than the drive's lock-step idle time, so it runs on.
+    std::thread::sleep(Duration::from_millis(500));
+    for k in 700..720 {
+        c.send(Request::Stream(point(k))).unwrap();
+    }
+    let st = match c.request(Request::Status).unwrap() {
+        Reply::Status(s) => s,
+        r => panic!("{r:?}"),
+    };
+    let faults: Vec<String> = servo_core::FaultSet::from_bits_retain(st.faults).names().map(str::to_string).collect();
+    let reasons: Vec<String> = c.unsolicited.iter().map(|u| format!("{:?}", u.error)).collect();
+    println!("after the pause: faults {faults:?}, refusals {reasons:?}");
+    assert_eq!(faults, ["stream_timeout"]);
+    assert!(!reasons.is_empty() && reasons.iter().all(|r| r.contains("RefusedFaultsLatched")), "{reasons:?}");
+    let advice = stream::fault_advice("ramp.csv", &faults);
+    println!("{advice}");
+    assert!(advice.starts_with("ramp.csv: faults latched: stream_timeout (") && advice.contains("next: `cmd clear-faults`, then `cmd enable`"), "{advice}");
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    h.join().unwrap().unwrap();
+}
+
+/// `set-home -0.1` typed on a running drive (a sign slipped in): refused,
+/// nothing changed, rather than taken and tripping the overtravel check
+/// with the load dropped onto the brake.
+#[test]
+fn a_set_home_beyond_the_stroke_on_a_running_drive_is_refused() {
+    let d = Drive::start(None);
+    let mut c = d.connect();
+    enabled(&mut c);
+    let r = c.ask(Request::Command(DriveCommand::SetHome { position_m: -0.1 }));
+    let e = r.unwrap_err().to_string();
+    println!("{e}");
+    assert!(e.contains("set-home -0.1") && e.contains("beyond its bound"), "{e}");
+    let st = match c.ask(Request::Status).unwrap() {
+        Reply::Status(s) => s,
+        r => panic!("{r:?}"),
+    };
+    assert_eq!(st.faults, 0);
+    assert_eq!(st.mode, servo_core::Mode::Running);
+    // Within the stroke it is taken.
+    assert!(c.ask(Request::Command(DriveCommand::SetHome { position_m: 0.2 })).is_ok());
+}

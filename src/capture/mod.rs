@@ -9,11 +9,16 @@
 //! the controller writes through a `&'static`.
 //!
 //! The PWM interrupt's part is small on purpose: a sample reads each
-//! slot's value, encodes it with the slot's scale and bias (one
-//! multiply-add and a saturating conversion) and writes the frame with one
-//! bounds check. The rest (the pre-trigger count, the end) runs only when
-//! a count-down of frames runs out; a trigger is taken where it happens,
-//! outside the frame (see [`Capture::take_trigger`]). The store is separate from
+//! slot's value and stages it as it is, in a few frames of `f32`
+//! ([`PENDING_FRAMES`]); the staged frames are encoded into the ring (one
+//! multiply-add and a saturating conversion a value) in a batch, at the
+//! next speed-loop tick, or when the staging is full, or before anything
+//! that needs the ring up to date (a trigger, the record's end). A
+//! current-only period thus pays only the reads and stores; it is there
+//! that the firmware serves bulk requests, so that is the period whose
+//! length bounds the longest one. The rest (the pre-trigger count, the end)
+//! runs only when a count-down of frames runs out; a trigger is taken where
+//! it happens, outside the frame (see [`Capture::take_trigger`]). The store is separate from
 //! the controller so that the controller stays small enough to build and
 //! hand over on the stack, and so thread mode can read a done capture
 //! straight from the store (the interrupt writes nothing once a capture is
@@ -43,6 +48,13 @@ use crate::reason::Reason;
 
 /// Largest code a finite value is stored as (the full scale).
 pub const FULL_SCALE_CODE: f32 = 32_767.0;
+
+/// Frames staged as raw values before they are encoded into the ring: the
+/// frames of one speed-loop period at the default rates (a 20 kHz PWM, a
+/// 5 kHz speed loop), so that with decimation 1 the batch lands in the
+/// speed-loop period. A power of two: the staging index is masked, not
+/// bounds-checked.
+pub const PENDING_FRAMES: usize = 4;
 
 /// Share of the stroke span added at each end of the position full scale
 /// (homing and overtravel go beyond the stroke).
@@ -113,9 +125,13 @@ pub struct Capture {
     /// Armed or triggered: the controller's `HOOK_CAPTURE` mirrors it, so
     /// the period tests the hook byte, not this.
     recording: bool,
-    /// Cell of the next frame's first signal (a halfword: then the
+    /// Cell of the next encoded frame's first signal (a halfword: then the
     /// frame's end cannot overflow, and that test drops out).
     write_cell: u16,
+    /// Sampled frames not yet encoded, oldest first: they go to the ring
+    /// from `write_cell` on. Fewer than [`PENDING_FRAMES`] between periods.
+    pending: [[f32; CAPTURE_SIGNALS_MAX]; PENDING_FRAMES],
+    pending_len: u32,
     /// Frames to the next change of the bookkeeping: the pre-trigger
     /// samples all in the ring (armed), the end (triggered).
     frames_to_event: u32,
@@ -145,6 +161,8 @@ impl Capture {
             skip_reload: 0,
             recording: false,
             write_cell: 0,
+            pending: [[0.0; CAPTURE_SIGNALS_MAX]; PENDING_FRAMES],
+            pending_len: 0,
             frames_to_event: 0,
             count: 0,
             state: CaptureState::Idle,
@@ -242,6 +260,8 @@ impl Capture {
             skip_reload: c.decimation.wrapping_sub(1), // ≥ 1, checked above
             recording: true,
             write_cell: 0,
+            pending: [[0.0; CAPTURE_SIGNALS_MAX]; PENDING_FRAMES],
+            pending_len: 0,
             frames_to_event: if pre_filled { u32::MAX } else { u32::from(c.pre_trigger) },
             count: n as u8,
             state: CaptureState::Armed,
@@ -293,12 +313,6 @@ impl Capture {
         self.signal.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
-    /// Signals per frame.
-    #[inline(always)]
-    pub fn count(&self) -> u8 {
-        self.count
-    }
-
     /// Slot `K`'s signal.
     #[inline(always)]
     pub fn signal<const K: usize>(&self) -> Signal {
@@ -314,6 +328,8 @@ impl Capture {
     #[cold]
     #[inline(never)]
     fn take_trigger(&mut self) {
+        // The write position below is the ring's: staged frames first.
+        self.flush();
         self.state = CaptureState::Triggered;
         // Armed, `frames_to_event` counts down to the pre-trigger
         // samples all in: fewer than `pre_trigger` written until then.
@@ -333,23 +349,60 @@ impl Capture {
         self.frames_to_event = u32::from(post);
     }
 
-    /// The cells of the next frame, `N` (the configured count) of them,
-    /// and the ring moved on past them: the frame's one wrap check, and
-    /// one bounds check (on the same compare; it never fails, the ring
-    /// being whole frames).
+    /// Stages one sampled frame (slot `k`'s value in `values[k]`; slots
+    /// beyond the configured count are ignored); true when the staging is
+    /// full and must be [flushed](Self::flush) before the next frame.
     #[inline(always)]
-    pub fn frame<const N: usize>(&mut self) -> Option<&'static [AtomicU16]> {
-        let at = usize::from(self.write_cell);
-        let next = at.wrapping_add(N);
-        self.write_cell = if next >= self.ring.len() { 0 } else { next as u16 };
-        self.ring.get(at..next)
+    pub fn stage(&mut self, values: [f32; CAPTURE_SIGNALS_MAX]) -> bool {
+        // Below PENDING_FRAMES (a flush follows a full staging); the mask
+        // keeps the index in bounds without a check.
+        let j = self.pending_len as usize & (PENDING_FRAMES - 1);
+        if let Some(frame) = self.pending.get_mut(j) {
+            *frame = values;
+        }
+        self.pending_len = self.pending_len.wrapping_add(1);
+        self.pending_len as usize >= PENDING_FRAMES
     }
 
-    /// Stores `v` as slot `K`'s code in `frame`.
+    /// Encodes the staged frames into the ring, oldest first.
+    #[inline(never)]
+    pub fn flush(&mut self) {
+        // One copy per signal count, its slots written out: the core is
+        // built for size, so the compiler would keep a loop over them. The
+        // count is 1 to 4: `& 3` makes the four cases a jump table (4 → 0).
+        match self.count & 3 {
+            0 => self.flush_frames::<4>(),
+            1 => self.flush_frames::<1>(),
+            2 => self.flush_frames::<2>(),
+            _ => self.flush_frames::<3>(),
+        }
+    }
+
+    /// [`Self::flush`] for `N` (the configured count) signals: each frame
+    /// with one wrap check and one bounds check (on the same compare; it
+    /// never fails, the ring being whole frames).
     #[inline(always)]
-    pub fn put<const K: usize>(&self, frame: &[AtomicU16], v: f32) {
-        if let (Some(cell), Some(&scale), Some(&bias)) = (frame.get(K), self.scale.get(K), self.bias.get(K)) {
-            cell.store(encode(v, scale, bias), Ordering::Relaxed);
+    fn flush_frames<const N: usize>(&mut self) {
+        let len = (self.pending_len as usize).min(PENDING_FRAMES);
+        self.pending_len = 0;
+        // Held in registers over the frames, not reloaded for each.
+        let (scale, bias) = (self.scale, self.bias);
+        for j in 0..len {
+            let at = usize::from(self.write_cell);
+            let next = at.wrapping_add(N);
+            self.write_cell = if next >= self.ring.len() { 0 } else { next as u16 };
+            if let (Some(cells), Some(values)) = (self.ring.get(at..next), self.pending.get(j)) {
+                put::<0>(cells, values, &scale, &bias);
+                if N > 1 {
+                    put::<1>(cells, values, &scale, &bias);
+                }
+                if N > 2 {
+                    put::<2>(cells, values, &scale, &bias);
+                }
+                if N > 3 {
+                    put::<3>(cells, values, &scale, &bias);
+                }
+            }
         }
     }
 
@@ -366,6 +419,8 @@ impl Capture {
     /// (armed), or the record is complete (triggered). False once done.
     pub fn frames_event(&mut self) -> bool {
         if self.state == CaptureState::Triggered {
+            // Done: the record whole in the ring before anyone may read it.
+            self.flush();
             self.state = CaptureState::Done;
             self.recording = false;
             return false;
@@ -427,6 +482,14 @@ impl Capture {
 impl Default for Capture {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+/// Slot `K`'s staged value, encoded, into its cell of `frame`.
+#[inline(always)]
+fn put<const K: usize>(frame: &[AtomicU16], values: &[f32; CAPTURE_SIGNALS_MAX], scale: &[f32; CAPTURE_SIGNALS_MAX], bias: &[f32; CAPTURE_SIGNALS_MAX]) {
+    if let (Some(cell), Some(&v), Some(&scale), Some(&bias)) = (frame.get(K), values.get(K), scale.get(K), bias.get(K)) {
+        cell.store(encode(v, scale, bias), Ordering::Relaxed);
     }
 }
 

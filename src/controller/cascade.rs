@@ -107,7 +107,7 @@ impl Controller {
     }
 
     pub(super) fn current_period(&mut self, s: &SensorSample, rotor: RotorState) -> PwmCommand {
-        let out = self.current_loop.step(&self.params, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
+        let out = self.current_loop.step(&self.params, self.derived.current_timing, s.phase_current_a, self.current_reference, rotor, s.bus_voltage_v);
         self.current_dq = out.current_dq;
         self.voltage_dq = out.voltage_dq;
         if out.voltage_limited {
@@ -159,14 +159,19 @@ impl Controller {
     /// overshoot and ring.
     #[inline(never)]
     fn stream_reference(&mut self) -> TrajectorySample {
-        let a_stop = self.params.faults.stop_deceleration_m_s2;
-        let lead_s = crate::motion::stream::torque_path_delay_s(&self.params);
-        let mut r = self.stream.advance(self.derived.position_period_s, a_stop, lead_s);
+        let shaping = crate::motion::stream_stop::StopShaping::of(&self.params);
+        let mut r = self.stream.advance(self.derived.position_period_s, &shaping);
         if self.stream.lost_at_rest() {
             self.raise(FaultSet::STREAM_TIMEOUT);
+            if self.mode == Mode::Stopping {
+                // The stream's own stop has come to rest: the controlled
+                // stop holds there, not where the motor happens to be while
+                // the payload still swings on the rod (a step of tens of µm).
+                self.stop = crate::motion::StopRamp::new(r.position_m, 0.0, self.params.faults.stop_deceleration_m_s2);
+            }
             return r;
         }
-        if self.stream.stopping() {
+        if self.stream.decelerating() {
             return r;
         }
         let a_max = self.params.trajectory.max_acceleration_m_s2;
@@ -252,7 +257,15 @@ impl Controller {
         } else {
             r.velocity_m_s
         };
-        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, planned_m_s, self.load.slow_force_n());
+        let nut_force_n = if self.stream.active() {
+            // The nut carries the payload's inertial force too: a stream's
+            // stop (5 m/s² against the rated mass, half the weight) changes
+            // the screw's load-proportional friction by a tenth of that.
+            self.load.slow_force_n() + self.params.drive_train.moving_mass_kg * r.acceleration_m_s2
+        } else {
+            self.load.slow_force_n()
+        };
+        self.friction_ff_n_m = friction_feedforward_n_m(&self.params, planned_m_s, nut_force_n);
         if self.stream.active() {
             // A streamed force feedforward: the load the platform expects,
             // as torque at the screw.
@@ -263,14 +276,11 @@ impl Controller {
         match s.load_cell_force_n {
             // The load cell sits beyond the nut and the seal: it feels the
             // payload's inertia but none of the friction.
-            Some(f) => {
+            Some(f) if !self.params.compensation.force_from_estimate => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
-            None => {
-                // The estimate reads friction through the same torque-to-force
-                // scaling as the load, so the fed-forward torque goes with it.
-                let friction_n = self.friction_ff_n_m * self.params.drive_train.screw_efficiency / self.params.metres_per_rad();
-                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, inertial_n + friction_n, dt);
+            _ => {
+                self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, planned_m_s, inertial_n, dt);
             }
         }
     }
@@ -316,7 +326,7 @@ impl Controller {
         let mut limits = self.limits;
         limits.insert(self.pending_limits);
         self.telemetry = Telemetry {
-            time_s: self.tick as f32 * self.derived.pwm_period_s,
+            time_s: self.tick as f32 * self.derived.current_timing.period_s,
             mode: self.mode,
             position_reference_m: self.position_reference_m,
             position_command_m: self.position_command_m,

@@ -206,6 +206,14 @@ impl Controller {
                 if matches!(self.mode, Mode::Calibrating | Mode::Aligning | Mode::Homing) || self.move_in_progress() {
                     return Err(CommandError::Busy);
                 }
+                let (l, overtravel_m) = (&self.params.limits, self.params.faults.stroke_overtravel_m);
+                let outside = position_m < l.stroke_min_m - overtravel_m || position_m > l.stroke_max_m + overtravel_m;
+                if outside && !matches!(self.mode, Mode::Disabled | Mode::Fault) {
+                    // With the bridge on, the rod would be declared beyond
+                    // the stroke and the overtravel trip would drop the load
+                    // at once (a mistyped sign does that).
+                    return Err(CommandError::OutOfRange);
+                }
                 // Only the user frame moves: the count, and with it the
                 // electrical angle, stays where it is.
                 self.home_offset_m += position_m - self.motor_position_m();
@@ -343,6 +351,11 @@ impl Controller {
         }
         if !self.readiness.contains(Readiness::HOMED) {
             return Err(CommandError::NotHomed);
+        }
+        if !self.faults.is_empty() {
+            // Named before the mode: a latched fault is why the drive is not
+            // running, and clearing it is the next step.
+            return Err(CommandError::Faulted(self.faults));
         }
         if self.mode != Mode::Running {
             return Err(CommandError::NotRunning);

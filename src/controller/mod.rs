@@ -26,7 +26,7 @@ pub use params_apply::ApplyError;
 
 use crate::capture::Capture;
 use crate::compensation::Compensator;
-use crate::foc::{CurrentLoop, Dq};
+use crate::foc::{CurrentLoop, CurrentTiming, Dq};
 use crate::io::{PwmCommand, SensorSample};
 use crate::lifecycle::{Commutation, CurrentCalibration, Homing, Readiness};
 use crate::load_estimate::LoadEstimator;
@@ -41,7 +41,8 @@ use core::f32::consts::PI;
 /// divisions it can avoid.
 #[derive(Clone, Copy, Debug)]
 struct Derived {
-    pwm_period_s: f32,
+    /// The PWM period and the current loop's phase lead.
+    current_timing: CurrentTiming,
     speed_period_s: f32,
     position_period_s: f32,
     current_limit_a: f32,
@@ -72,7 +73,7 @@ impl Derived {
     fn of(p: &ControlParams) -> Self {
         let cpr = p.encoder.counts_per_rev as f32;
         Self {
-            pwm_period_s: p.pwm_period_s(),
+            current_timing: CurrentTiming::of(p),
             speed_period_s: p.speed_period_s(),
             position_period_s: p.position_period_s(),
             current_limit_a: p.current_limit_a(),
@@ -514,7 +515,7 @@ impl Controller {
         let enc = self.encoder.update(
             &self.params.encoder,
             s.encoder_count,
-            self.derived.pwm_period_s,
+            self.derived.current_timing.period_s,
             self.params.faults.encoder_max_step_counts,
             self.params.faults.encoder_max_innovation_counts,
         );
@@ -545,7 +546,7 @@ impl Controller {
             Mode::Preloading => self.preload_period(s, position_tick, speed_tick),
         };
         if self.hooks != 0 {
-            self.hooks_period(s);
+            self.hooks_period(s, speed_tick);
         }
         if position_tick {
             self.cut_telemetry();

@@ -255,30 +255,36 @@ impl Controller {
 
     /// The end of a PWM period with a capture recording or a test active:
     /// the sample of this period, then the test's reference for the next.
-    #[inline(never)]
-    pub(super) fn hooks_period(&mut self, s: &SensorSample) {
+    /// `speed_tick`: this period ran the speed loop (the capture encodes
+    /// its staged frames there).
+    #[inline(always)]
+    pub(super) fn hooks_period(&mut self, s: &SensorSample, speed_tick: bool) {
         if self.hooks & HOOK_CAPTURE != 0 && self.capture.tick() {
-            self.capture_frame(s);
+            self.capture_frame(s, speed_tick);
         }
         if self.hooks & HOOK_TEST != 0 {
             self.test_period();
         }
     }
 
-    /// One frame of the capture: each slot's value, encoded and stored.
+    /// One frame of the capture: each slot's value, staged as it is (the
+    /// encoding runs in a batch, see `Capture::flush`). All four slots,
+    /// written out: no loop and no jump on the configured count (a slot
+    /// beyond it reads a value nobody keeps, at the cost of one load).
     #[inline(always)]
-    fn capture_frame(&mut self, s: &SensorSample) {
-        // One copy of the frame per signal count: no loop, each slot's
-        // table entries at fixed places. The count is 1 to 4: `& 3` makes
-        // the four cases a jump table (4 → 0).
-        let event = match self.capture.count() & 3 {
-            0 => self.capture_write::<4>(s),
-            1 => self.capture_write::<1>(s),
-            2 => self.capture_write::<2>(s),
-            _ => self.capture_write::<3>(s),
-        };
-        if event {
+    fn capture_frame(&mut self, s: &SensorSample, speed_tick: bool) {
+        let values = [
+            self.signal_value(self.capture.signal::<0>(), s),
+            self.signal_value(self.capture.signal::<1>(), s),
+            self.signal_value(self.capture.signal::<2>(), s),
+            self.signal_value(self.capture.signal::<3>(), s),
+        ];
+        let full = self.capture.stage(values);
+        if self.capture.advance() {
             self.capture_event();
+        }
+        if full || speed_tick {
+            self.capture.flush();
         }
     }
 
@@ -289,29 +295,6 @@ impl Controller {
         if !self.capture.frames_event() {
             self.refresh_hooks();
         }
-    }
-
-    /// Writes the frame of `N` slots (the configured count); true when the
-    /// frame count-down ran out. Slot by slot, written out: the core is built
-    /// for size, so the compiler would keep a loop here (a counter, a
-    /// compare and a branch a slot, and the values through the stack).
-    #[inline(always)]
-    fn capture_write<const N: usize>(&mut self, s: &SensorSample) -> bool {
-        if let Some(frame) = self.capture.frame::<N>() {
-            if N > 0 {
-                self.capture.put::<0>(frame, self.signal_value(self.capture.signal::<0>(), s));
-            }
-            if N > 1 {
-                self.capture.put::<1>(frame, self.signal_value(self.capture.signal::<1>(), s));
-            }
-            if N > 2 {
-                self.capture.put::<2>(frame, self.signal_value(self.capture.signal::<2>(), s));
-            }
-            if N > 3 {
-                self.capture.put::<3>(frame, self.signal_value(self.capture.signal::<3>(), s));
-            }
-        }
-        self.capture.advance()
     }
 
     /// One signal's value now: a load for most, a multiply or two for the

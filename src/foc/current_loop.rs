@@ -22,6 +22,25 @@ pub struct CurrentLoopOutput {
     pub voltage_limited: bool,
 }
 
+/// The loop's timing, derived from the PWM rate once (at parameter apply)
+/// instead of a division every period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurrentTiming {
+    /// One PWM period: the PI regulators' time step.
+    pub period_s: f32,
+    /// How far ahead the applied voltage vector must point: the duties act
+    /// from the next period on, on average half a period later still, so
+    /// 1.5 periods of electrical travel.
+    pub advance_s: f32,
+}
+
+impl CurrentTiming {
+    pub fn of(p: &ControlParams) -> Self {
+        let period_s = p.pwm_period_s();
+        Self { period_s, advance_s: 1.5 * period_s }
+    }
+}
+
 /// Everything about the rotor the current loop needs this period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RotorState {
@@ -51,12 +70,13 @@ impl CurrentLoop {
     pub fn step(
         &mut self,
         p: &ControlParams,
+        timing: CurrentTiming,
         phase_current_a: [f32; 3],
         reference: Dq,
         rotor: RotorState,
         bus_voltage_v: f32,
     ) -> CurrentLoopOutput {
-        let dt = p.pwm_period_s();
+        let dt = timing.period_s;
         let m = &p.motor;
         let sc = SinCos::of(rotor.electrical_angle_rad);
         let current = park(clarke(phase_current_a), sc);
@@ -74,10 +94,9 @@ impl CurrentLoop {
         let uq = self.pi_q.update(&p.current_pi, reference.q - current.q, ff_q, -uq_max, uq_max, dt);
         let voltage_dq = Dq { d: ud.value, q: uq.value };
 
-        // The duties act from the next period on, on average half a period
-        // later still: rotate by 1.5 periods of electrical travel so the
-        // applied vector sits where the rotor will be.
-        let out = svpwm(inverse_park(voltage_dq, sc.advanced_by(1.5 * dt * w)), bus_voltage_v);
+        // Rotated ahead so the applied vector sits where the rotor will be
+        // while it acts (see `CurrentTiming::advance_s`).
+        let out = svpwm(inverse_park(voltage_dq, sc.advanced_by(timing.advance_s * w)), bus_voltage_v);
         CurrentLoopOutput {
             duty: out.duty,
             current_dq: current,

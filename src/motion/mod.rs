@@ -6,6 +6,7 @@ pub mod position_loop;
 pub mod speed_loop;
 pub mod stop;
 pub mod stream;
+pub mod stream_stop;
 pub mod trajectory;
 
 pub use encoder::{EncoderTracker, EncoderUpdate};

@@ -112,11 +112,23 @@ impl SpeedLoop {
 /// follows the planned velocity, never the measured one, so the feedforward
 /// cannot close a loop around stick-slip.
 pub fn friction_feedforward_n_m(p: &ControlParams, velocity_reference_m_s: f32, load_force_n: f32) -> f32 {
+    p.drive_train.friction_feedforward_gain * friction_direction(p, velocity_reference_m_s) * coulomb_friction_n_m(p, load_force_n)
+}
+
+/// Direction of the friction for a planned velocity, −1 to 1: ramped over
+/// `friction_feedforward_speed_rad_s`, since a hard sign would chatter at
+/// standstill, where the friction can take any value within its size.
+pub fn friction_direction(p: &ControlParams, velocity_reference_m_s: f32) -> f32 {
+    let omega = velocity_reference_m_s / p.metres_per_rad();
+    crate::math::clamp(omega / p.drive_train.friction_feedforward_speed_rad_s, -1.0, 1.0)
+}
+
+/// Size of the whole modelled Coulomb friction at the motor shaft (the
+/// feedforward before its gain and sign): load-independent drag plus the
+/// screw's share of the axial load.
+pub fn coulomb_friction_n_m(p: &ControlParams, load_force_n: f32) -> f32 {
     let d = &p.drive_train;
-    let r = p.metres_per_rad();
-    let omega = velocity_reference_m_s / r;
-    let sign = crate::math::clamp(omega / d.friction_feedforward_speed_rad_s, -1.0, 1.0);
     let mu = (1.0 - d.screw_efficiency) / d.screw_efficiency;
     let load = if load_force_n.is_finite() { load_force_n.abs() } else { 0.0 };
-    d.friction_feedforward_gain * sign * (d.coulomb_friction_n_m + r * mu * load)
+    d.coulomb_friction_n_m + p.metres_per_rad() * mu * load
 }

@@ -231,7 +231,12 @@ impl ControlParams {
         // log is the one trained for this rig. 20 mm/s: the full 0.3 mm sag is
         // taken up in 15 ms, faster than the load changes, and a jump in the
         // load estimate moves the rod at most 20 µm per millisecond.
-        compensation: CompensationParams { enabled_at_start: false, shift_max_m: 0.0015, shift_rate_max_m_s: 0.02 },
+        compensation: CompensationParams {
+            enabled_at_start: false,
+            shift_max_m: 0.0015,
+            shift_rate_max_m_s: 0.02,
+            force_from_estimate: false,
+        },
         // Catalogue class for a 2.5 N·m spring-applied servo brake (≈2× the
         // 1.1 N·m that holds rated thrust): 50 ms to open, 30 ms to close.
         // Preload: 20 ms is eight speed-loop time constants at 40 Hz.

@@ -180,6 +180,7 @@ leaves! {
     compensation.enabled_at_start,
     compensation.shift_max_m,
     compensation.shift_rate_max_m_s,
+    compensation.force_from_estimate,
     brake.fitted,
     brake.release_time_s,
     brake.engage_time_s,

@@ -273,6 +273,15 @@ pub struct CompensationParams {
     pub shift_max_m: f32,
     /// Largest rate of change of the shift.
     pub shift_rate_max_m_s: f32,
+    /// The observer's force input. `false`: the load cell where one is
+    /// fitted (the compiled model is trained on it); a drive without one
+    /// reads the estimate. `true`: the estimate from the q current, with
+    /// the rotating inertia, the viscous drag and the identified Coulomb
+    /// friction taken out (`load_estimate`), even with a load cell fitted;
+    /// run it with a model trained on that input (docs/observer.md,
+    /// "Without a load cell").
+    #[serde(default)]
+    pub force_from_estimate: bool,
 }
 
 /// A plain PI: parameter records and files written before the weight

@@ -16,8 +16,9 @@ pub struct StreamParams {
     pub period_max_s: f32,
     /// The longest gap after which a setpoint still joins the stream: a
     /// later one is refused. The stream itself is lost sooner, one expected
-    /// interval after its newest setpoint was reached; it then decelerates
-    /// to rest and latches `stream_timeout`.
+    /// interval after its newest setpoint was reached (where the reference
+    /// began to decelerate); the deceleration goes on to rest and latches
+    /// `stream_timeout`.
     pub timeout_s: f32,
     /// This drive's slot (leg 0…5) in the platform's CAN FD setpoint frame
     /// (`protocol::can`): each of the six drives on the bus reads its own.

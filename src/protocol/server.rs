@@ -347,6 +347,13 @@ impl<P: Borrow<ValidatedParams>> Server<P> {
         if sp.velocity_m_s.abs() > v_max {
             return Err(stream_error(Reason::BeyondMaxVelocity));
         }
+        if !t.faults.is_empty() {
+            // A latched fault (a lost stream's `stream_timeout` among them)
+            // is why no point is taken: named before the gap or jump a
+            // paused client's next points would otherwise be refused for.
+            self.last_point = None;
+            return Err(stream_error(Reason::RefusedFaultsLatched));
+        }
         let period_max = p.stream.period_max_s;
         let (from_m, interval_s, disagreement_m) = match self.last_point {
             Some(last) => {

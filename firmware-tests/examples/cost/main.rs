@@ -32,7 +32,7 @@ use golden::plant::{Noise, RigidPlant};
 use golden::CLOSED_LOOP_SCRIPT;
 use servo_core::foc::current_loop::RotorState;
 use servo_core::foc::{
-    clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, Dq, SinCos,
+    clarke, inverse_park, park, svpwm, wrap_pi, AlphaBeta, CurrentLoop, CurrentTiming, Dq, SinCos,
 };
 use servo_core::motion::{position_step, EncoderTracker, ScurveMove, SpeedLoop};
 use servo_core::capture::CaptureStore;
@@ -107,7 +107,7 @@ fn main() -> ! {
     }
 
     let p = ControlParams::DEFAULT;
-    let mut rows: [Option<Row>; 24] = Default::default();
+    let mut rows: [Option<Row>; 25] = Default::default();
     let mut n_rows = 0usize;
     let mut push = |r: Row| {
         if let Some(slot) = rows.get_mut(n_rows) {
@@ -120,7 +120,7 @@ fn main() -> ! {
     let (cur, spd, pos, off, faults_seen) = closed_loop(&m, p, false);
     // The same run with a capture recording four signals every period
     // (re-armed whenever it is done): what the scope costs while it records.
-    let (cap_cur, cap_spd, _, _, _) = closed_loop(&m, p, true);
+    let (cap_cur, cap_spd, cap_pos, _, _) = closed_loop(&m, p, true);
     push(row(
         &m,
         "step_current",
@@ -156,6 +156,12 @@ fn main() -> ! {
         "step_speed_capturing",
         "Controller::step, speed + current loop, the same capture recording",
         &cap_spd,
+    ));
+    push(row(
+        &m,
+        "step_position_capturing",
+        "Controller::step, position + speed + current + telemetry, the same capture recording",
+        &cap_pos,
     ));
 
     // ---- the longest period with bulk requests ---------------------------
@@ -521,6 +527,9 @@ fn main() -> ! {
     hprintln!("JSON     \"current\": {:.1},", mean(&cur));
     hprintln!("JSON     \"speed\": {:.1},", mean(&spd));
     hprintln!("JSON     \"current_capturing\": {:.1},", mean(&cap_cur));
+    // Where a capture encodes its staged frames (src/capture/mod.rs).
+    hprintln!("JSON     \"speed_capturing\": {:.1},", mean(&cap_spd));
+    hprintln!("JSON     \"position_capturing\": {:.1},", mean(&cap_pos));
     hprintln!("JSON     \"position\": {:.1},", mean(&pos));
     hprintln!(
         "JSON     \"position_with_observer\": {:.1},",

@@ -59,7 +59,7 @@ pub(crate) fn current_loop(
     rotor: RotorState,
     bus: f32,
 ) -> [f32; 3] {
-    cl.step(p, abc, r, rotor, bus).duty
+    cl.step(p, CurrentTiming::of(p), abc, r, rotor, bus).duty
 }
 
 #[inline(never)]

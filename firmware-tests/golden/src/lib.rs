@@ -30,7 +30,7 @@ pub mod table;
 use core::f32::consts::PI;
 
 use servo_core::foc::current_loop::RotorState;
-use servo_core::foc::{wrap_pi, CurrentLoop, Dq, SinCos};
+use servo_core::foc::{wrap_pi, CurrentLoop, CurrentTiming, Dq, SinCos};
 use servo_core::motion::ScurveMove;
 use servo_core::observer;
 use servo_core::{Command, ControlParams, Controller, PwmCommand, SensorSample};
@@ -143,8 +143,8 @@ impl Family for Foc {
         let raw = f(i[8]);
         let sc = SinCos::of(raw);
         let mut cl = CurrentLoop::new();
-        cl.step(&self.p, currents, reference, rotor, bus);
-        let o = cl.step(&self.p, currents, reference, rotor, bus);
+        cl.step(&self.p, CurrentTiming::of(&self.p), currents, reference, rotor, bus);
+        let o = cl.step(&self.p, CurrentTiming::of(&self.p), currents, reference, rotor, bus);
         let words = [
             w(sc.sin),
             w(sc.cos),

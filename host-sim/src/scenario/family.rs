@@ -15,16 +15,19 @@ pub const TRACKING_MAX_MAX_UM: f64 = 50.0;
 
 /// The paper's run (sensor noise from `seed`) on each rig of `family`,
 /// rigs in parallel; each rig's summary in `out/<rig>/`, the family's in `out`.
-pub fn run_family(family: &[FamilyRig], family_dir: &Path, seed: u64, out: &Path) -> Result<serde_json::Value> {
+/// `tune_filter`: each rig's torque filter chosen first by its own test
+/// moves (`tuning::filter`), as a bench engineer tunes a unit before use.
+pub fn run_family(family: &[FamilyRig], family_dir: &Path, seed: u64, tune_filter: bool, out: &Path) -> Result<serde_json::Value> {
     let t0 = std::time::Instant::now();
     let cycle = StrokeCycle::paper(seed);
     let rows = family
         .par_iter()
         .map(|r| {
-            let trace = run_stroke_cycle(&r.rig, &cycle).with_context(|| r.name.clone())?;
-            let s = metrics::paper_summary(&trace, seed, cycle.settle_s);
             let dir = out.join(&r.name);
             std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+            let (rig, filter_hz) = tuned(r, seed, tune_filter, &dir)?;
+            let trace = run_stroke_cycle(&rig, &cycle).with_context(|| r.name.clone())?;
+            let s = metrics::paper_summary(&trace, seed, cycle.settle_s);
             report::write_summary(&s, &dir)?;
             let mut why = vec![];
             if let Some(a) = &s.aborted {
@@ -46,6 +49,7 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, seed: u64, out: &Path
                     ("enable_sag_max_um".into(), Some(s.enable_sag_max_um)),
                     ("terminal_error_max_mm".into(), Some(s.terminal_error_max_mm)),
                     ("peak_phase_current_a".into(), Some(s.peak_phase_current_a)),
+                    ("torque_filter_hz".into(), Some(filter_hz)),
                 ],
             })
         })
@@ -61,8 +65,21 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, seed: u64, out: &Path
             ("terminal_error_max_mm", Worst::Max),
             ("peak_phase_current_a", Worst::Max),
         ],
-        serde_json::json!({ "seed": seed, "tracking_rms_max_um": TRACKING_RMS_MAX_UM, "tracking_max_max_um": TRACKING_MAX_MAX_UM }),
+        serde_json::json!({ "seed": seed, "tune_filter": tune_filter, "tracking_rms_max_um": TRACKING_RMS_MAX_UM, "tracking_max_max_um": TRACKING_MAX_MAX_UM }),
         t0.elapsed().as_secs_f64(),
         out,
     )
+}
+
+/// The rig as a family mode runs it: with its torque filter chosen by its
+/// test moves when `tune_filter` (the choice written to
+/// `dir/torque_filter.json`), else as its file says; and that filter, Hz.
+pub fn tuned(r: &FamilyRig, seed: u64, tune_filter: bool, dir: &Path) -> Result<(crate::config::RigConfig, f64)> {
+    if !tune_filter {
+        return Ok((r.rig.clone(), f64::from(r.rig.control.torque_filter_hz)));
+    }
+    let (rig, choice) = crate::tuning::filter::retune(&r.rig, seed).with_context(|| format!("{}: choosing the torque filter", r.name))?;
+    let path = dir.join("torque_filter.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&choice)?).with_context(|| format!("writing {}", path.display()))?;
+    Ok((rig, choice.torque_filter_hz))
 }

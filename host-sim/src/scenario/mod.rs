@@ -3,6 +3,7 @@
 pub mod dataset;
 pub mod family;
 pub mod identification;
+pub mod no_load_cell;
 pub mod stroke_cycle;
 
 pub use stroke_cycle::{run_stroke_cycle, Direction, RunTrace, StrokeCycle};

@@ -81,6 +81,16 @@ enum Leg {
 
 /// Runs one cycle closed-loop through the control core.
 pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace> {
+    run_stroke_cycle_with(rig, cycle, None)
+}
+
+/// [`run_stroke_cycle`] with the observer running `weights` (as uploaded
+/// to a drive) instead of the compiled model.
+pub fn run_stroke_cycle_with(
+    rig: &RigConfig,
+    cycle: &StrokeCycle,
+    weights: Option<&'static servo_core::observer::block::Weights>,
+) -> Result<RunTrace> {
     let mut scaled = rig.clone();
     scaled.plant.rod.payload_mass_kg *= cycle.payload_scale;
     scaled.validate().map_err(|e| anyhow::anyhow!("payload ×{}: {e}", cycle.payload_scale))?;
@@ -92,6 +102,11 @@ pub fn run_stroke_cycle(rig: &RigConfig, cycle: &StrokeCycle) -> Result<RunTrace
     let mut cl = ClosedLoop::new(controller, plant, bus);
     if let Err(e) = cl.controller.command(Command::Enable) {
         bail!("the drive refused to enable: {e:?}");
+    }
+    if let Some(weights) = weights {
+        if let Err(e) = cl.controller.command(Command::SetObserverWeights { weights }) {
+            bail!("the drive refused the observer weights: {e:?}");
+        }
     }
     if let Err(e) = cl.controller.command(Command::SetCompensation { enabled: cycle.compensation }) {
         bail!("the drive refused to switch compensation: {e:?}");

@@ -38,6 +38,14 @@ pub fn paper_reference(rig: &RigConfig) -> Result<Vec<Row>> {
 }
 
 pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
+    let mut s = stream_and_capture(rig, out)?;
+    s["gain_change_mid_move"] = super::bench_gain::run(rig)?;
+    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&s)?)?;
+    Ok(s)
+}
+
+/// The stream's tracking and the capture figure (no summary written).
+pub fn stream_and_capture(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     std::fs::create_dir_all(out)?;
     let rows = paper_reference(rig)?;
     let mut o = DriveOptions::new(rig.clone());
@@ -108,8 +116,5 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     })();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     let _ = h.join();
-    let mut s = result?;
-    s["gain_change_mid_move"] = super::bench_gain::run(rig)?;
-    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&s)?)?;
-    Ok(s)
+    result
 }

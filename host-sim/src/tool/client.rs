@@ -259,11 +259,31 @@ pub fn request_text(r: &Request) -> String {
     match r {
         Request::ParamSet { index, value } => format!("param set {} {}", param_path(*index), value_text(value)),
         Request::ParamGet { index } => format!("param get {}", param_path(*index)),
-        Request::Command(c) => format!("cmd {c:?}"),
+        Request::Command(c) => command_text(c),
         Request::Save => "param save".into(),
         Request::Load => "param load".into(),
         Request::Defaults => "param defaults".into(),
         other => format!("{other:?}"),
+    }
+}
+
+/// A command as the tool's user types it.
+fn command_text(c: &protocol::DriveCommand) -> String {
+    use protocol::DriveCommand;
+    match c {
+        DriveCommand::Enable => "cmd enable".into(),
+        DriveCommand::Disable => "cmd disable".into(),
+        DriveCommand::Calibrate => "cmd calibrate".into(),
+        DriveCommand::Align => "cmd align".into(),
+        DriveCommand::Home => "cmd home".into(),
+        DriveCommand::StartUp => "cmd startup".into(),
+        DriveCommand::Stop => "cmd stop".into(),
+        DriveCommand::ClearFaults => "cmd clear-faults".into(),
+        DriveCommand::SetCompensation { enabled } => format!("cmd comp {}", if *enabled { "on" } else { "off" }),
+        DriveCommand::MoveTo { position_m } => format!("move {position_m}"),
+        DriveCommand::Jog { distance_m } => format!("jog {distance_m}"),
+        DriveCommand::SetHome { position_m } => format!("set-home {position_m}"),
+        DriveCommand::SetPositionShift { shift_m } => format!("SetPositionShift {{ shift_m: {shift_m} }}"),
     }
 }
 
@@ -336,7 +356,7 @@ pub fn describe_command(c: &servo_core::CommandError) -> String {
         E::NotDisabled => "needs the bridge off: `cmd disable` first".into(),
         E::Busy => "a move or start-up step is in progress: wait for it (`status`) or `cmd stop`".into(),
         E::NotFinite => "an argument is not a finite number".into(),
-        E::OutOfRange => "an argument is beyond its bound".into(),
+        E::OutOfRange => "an argument is beyond its bound: positions within control.limits.stroke_min_m … stroke_max_m (`set-home` with the bridge on: within the stroke ± control.faults.stroke_overtravel_m), forces within the motor's peak thrust".into(),
         E::BusLow => "the bus voltage is below control.faults.bus_undervoltage_v: check the supply (`status` shows it)".into(),
         E::NotCalibrated => "current offsets not calibrated: `cmd startup` (or `cmd calibrate`) first".into(),
         E::NotCommutated => "the motor is not commutated: `cmd startup` (calibration, commutation, homing) first".into(),

@@ -4,6 +4,7 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod bench_family;
 pub mod bench_gain;
 pub mod client;
 pub mod config_file;
@@ -225,6 +226,15 @@ pub enum DriveCmd {
         out: PathBuf,
         #[arg(long)]
         params: Option<PathBuf>,
+        /// The stream on every rig of a family (`host-sim rigs`): a row per
+        /// rig and the worst case in summary.json, family.md; fails when a
+        /// rig does.
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
+        /// With --family: choose each rig's torque filter by its own test
+        /// moves first (docs/tuning.md, "The torque filter per unit").
+        #[arg(long, requires = "family")]
+        tune_filter: bool,
     },
     /// How often `watch` refreshes beside a controlling client: a simulated
     /// drive in real time, the view drawn off-screen.
@@ -305,7 +315,18 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&s)?);
             Ok(())
         }
-        DriveCmd::BenchStream { out, params } => {
+        DriveCmd::BenchStream { out, family: Some(dir), tune_filter, .. } => {
+            let rigs = crate::rigs::load_family(&dir)?;
+            let s = bench_family::run_family(&rigs, &dir, tune_filter, &out)?;
+            print!("{}", std::fs::read_to_string(out.join("family.md"))?);
+            println!("worst: {}", serde_json::to_string_pretty(&s["worst"])?);
+            println!("{} of {} rigs pass; wrote {}/{{summary.json, family.md}} and a folder per rig", s["rigs_passed"], s["rigs"], out.display());
+            if s["rigs_passed"] != s["rigs"] {
+                bail!("drive bench-stream: rigs failed: {}", s["rigs_failed"]);
+            }
+            Ok(())
+        }
+        DriveCmd::BenchStream { out, params, family: None, .. } => {
             let s = bench::run(&RigConfig::load_or_nominal(params.as_ref())?, &out)?;
             println!("{}", serde_json::to_string_pretty(&s)?);
             Ok(())
@@ -449,7 +470,7 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             std::fs::write(&summary, serde_json::to_string_pretty(&json)?)?;
             println!("figures → {}", summary.display());
             if !r.faults.is_empty() {
-                bail!("{name}: faults latched: {}; next: `cmd clear-faults`, then `cmd enable`", r.faults.join(", "));
+                bail!("{}", stream::fault_advice(&name, &r.faults));
             }
             if let Some(first) = r.grouped().first() {
                 bail!("{name}: {} points refused or bounded (first: {first})", r.refusals.len());

@@ -312,3 +312,17 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
     }
     Ok(report)
 }
+
+/// The error `stream` ends with when faults are latched: which, why for a
+/// lost stream, and the commands that resume.
+pub fn fault_advice(name: &str, faults: &[String]) -> String {
+    let lost = if faults.iter().any(|f| f == "stream_timeout") {
+        " (stream_timeout: no point reached the drive for more than one setpoint interval, the client paused or the link broke, and the drive stopped the rod)"
+    } else {
+        ""
+    };
+    format!(
+        "{name}: faults latched: {}{lost}; next: `cmd clear-faults`, then `cmd enable`, then `stream` again (its first point is reached from where the rod is)",
+        faults.join(", ")
+    )
+}

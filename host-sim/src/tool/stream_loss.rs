@@ -1,11 +1,13 @@
 //! `drive bench-stream-loss`: a stream cut mid-motion, against a simulated
-//! drive over TCP (fast pacing, lock-step), at 0.1 m/s and at the top
-//! stream speed (`trajectory.max_velocity_m_s`), two ways: the client
-//! stops sending but stays connected, and the client process is killed
-//! (its socket closes). Read from the drive's own position-period trace:
-//! the motor never turns back, the following error during the stop, where
-//! the rod comes to rest against `v²/(2·a_stop) + 1 mm` past the last
-//! point, and when `stream_timeout` is latched.
+//! drive over TCP (fast pacing, lock-step), raising and lowering the rated
+//! payload, with setpoints at 1 kHz and at the slowest rate the drive
+//! interpolates (`stream.period_max_s`), at 0.1 m/s and at the top stream
+//! speed (`trajectory.max_velocity_m_s`), two ways: the client stops
+//! sending but stays connected, and the client process is killed (its
+//! socket closes). Read from the drive's own position-period trace: the
+//! motor never turns back, the following error during the stop, where the
+//! rod comes to rest against `v²/(2·a_stop) + 1 mm` past the last point,
+//! and when `stream_timeout` is latched.
 
 use super::client::{Client, Endpoint};
 use super::stream::{self, Row};
@@ -21,33 +23,47 @@ use std::time::{Duration, Instant};
 
 /// Acceleration of the ramp up to the stream speed, m/s².
 const RAMP_ACCELERATION_M_S2: f64 = 2.0;
-/// Start of the ramp, m.
+/// Start of a raising ramp, m (a lowering one starts this far from the
+/// other end of the stroke).
 const START_M: f64 = 0.1;
+/// The fastest setpoint rate covered, Hz (the slowest is the drive's own
+/// `stream.period_max_s`).
+const FAST_RATE_HZ: f64 = 1000.0;
 /// Following-error bound during the stop, m.
 pub const FOLLOWING_BOUND_M: f64 = 50e-6;
 /// Rest within `v²/(2·a_stop)` plus this, m.
 pub const REST_MARGIN_M: f64 = 1e-3;
 
-/// A 1 kHz ramp: accelerate to `v`, then cruise for `cruise_s`.
-pub fn ramp_rows(v: f64, cruise_s: f64, dt: f64) -> Vec<Row> {
-    let t_acc = v / RAMP_ACCELERATION_M_S2;
+/// A ramp from `start_m` sampled every `dt`: accelerate to `v` (signed),
+/// then cruise for `cruise_s`.
+pub fn ramp_rows(start_m: f64, v: f64, cruise_s: f64, dt: f64) -> Vec<Row> {
+    let t_acc = v.abs() / RAMP_ACCELERATION_M_S2;
+    let a = RAMP_ACCELERATION_M_S2 * v.signum();
     let n = ((t_acc + cruise_s) / dt).round() as usize;
     (0..=n)
         .map(|k| {
             let t = k as f64 * dt;
-            let (x, vel) = if t < t_acc {
-                (START_M + 0.5 * RAMP_ACCELERATION_M_S2 * t * t, RAMP_ACCELERATION_M_S2 * t)
-            } else {
-                (START_M + 0.5 * v * t_acc + v * (t - t_acc), v)
-            };
+            let (x, vel) = if t < t_acc { (start_m + 0.5 * a * t * t, a * t) } else { (start_m + 0.5 * v * t_acc + v * (t - t_acc), v) };
             Row { t_s: t, position_m: x, velocity_m_s: vel, force_n: None }
         })
         .collect()
 }
 
+/// One cut: which way, how fast, at which setpoint rate.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    /// Signed: positive raises the payload.
+    velocity_m_s: f64,
+    period_s: f64,
+    start_m: f64,
+}
+
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Case {
     pub cut: &'static str,
+    /// `raising` or `lowering` the payload.
+    pub direction: &'static str,
+    pub setpoint_rate_hz: f64,
     pub speed_m_s: f64,
     pub last_point_m: f64,
     /// Drive time from the last point to `stream_timeout`, s.
@@ -65,7 +81,8 @@ pub struct Case {
     pub rest_ok: bool,
 }
 
-fn analyse(cut: &'static str, v: f64, a_stop: f64, trace: &[TraceRow]) -> Result<Case> {
+fn analyse(cut: &'static str, run: &Run, a_stop: f64, trace: &[TraceRow]) -> Result<Case> {
+    let v = run.velocity_m_s;
     let last = trace.iter().rposition(|r| r.stream_point_m.is_some()).context("no stream point reached the drive")?;
     let last_point_m = f64::from(trace[last].stream_point_m.unwrap_or(0.0));
     let latch = trace[last..].iter().position(|r| FaultSet::from_bits_retain(r.faults).contains(FaultSet::STREAM_TIMEOUT)).map(|i| last + i);
@@ -79,7 +96,9 @@ fn analyse(cut: &'static str, v: f64, a_stop: f64, trace: &[TraceRow]) -> Result
     let bound = v * v / (2.0 * a_stop) + REST_MARGIN_M;
     Ok(Case {
         cut,
-        speed_m_s: v,
+        direction: if v > 0.0 { "raising" } else { "lowering" },
+        setpoint_rate_hz: (1.0 / run.period_s).round(),
+        speed_m_s: v.abs(),
         last_point_m,
         latched_after_s: latch.map(|l| trace[l].time_s - trace[last].time_s),
         reverse_speed_max_m_s: reverse,
@@ -93,11 +112,12 @@ fn analyse(cut: &'static str, v: f64, a_stop: f64, trace: &[TraceRow]) -> Result
     })
 }
 
-fn start_drive(rig: &RigConfig, trace: drive::Trace) -> Result<(std::net::SocketAddr, drive::StopFlag, std::thread::JoinHandle<Result<()>>)> {
+fn start_drive(rig: &RigConfig, run: &Run, trace: drive::Trace) -> Result<(std::net::SocketAddr, drive::StopFlag, std::thread::JoinHandle<Result<()>>)> {
     let mut o = DriveOptions::new(rig.clone());
     o.pace = Pace::Fast;
     o.commissioned = true;
-    o.initial_position_m = START_M;
+    o.initial_position_m = run.start_m;
+    o.stream_period_s = run.period_s;
     o.trace = Some(trace);
     drive::spawn_local(o)
 }
@@ -110,15 +130,15 @@ fn enable(addr: &std::net::SocketAddr) -> Result<()> {
 }
 
 /// The client sends the ramp up to the cut and then nothing, connected.
-fn cut_by_silence(rig: &RigConfig, v: f64) -> Result<Vec<TraceRow>> {
+fn cut_by_silence(rig: &RigConfig, run: &Run) -> Result<Vec<TraceRow>> {
     let trace: drive::Trace = Arc::new(Mutex::new(Vec::new()));
-    let (addr, stop, h) = start_drive(rig, trace.clone())?;
-    let run = (|| -> Result<()> {
+    let (addr, stop, h) = start_drive(rig, run, trace.clone())?;
+    let result = (|| -> Result<()> {
         let mut c = Client::connect(&Endpoint::Tcp(addr.to_string()))?;
         c.timeout = Duration::from_secs(10);
         c.ask(Request::Command(DriveCommand::Enable))?;
         wait_running(&mut c)?;
-        let rows = ramp_rows(v, 0.2, 1e-3);
+        let rows = ramp_rows(run.start_m, run.velocity_m_s, 0.2, run.period_s);
         for r in &rows {
             let p = servo_core::protocol::StreamPoint { position_m: r.position_m as f32, velocity_m_s: r.velocity_m_s as f32, force_n: None };
             c.send(Request::Stream(p))?;
@@ -131,20 +151,21 @@ fn cut_by_silence(rig: &RigConfig, v: f64) -> Result<Vec<TraceRow>> {
     })();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     h.join().map_err(|_| anyhow::anyhow!("drive thread panicked"))??;
-    run?;
+    result?;
     let t = trace.lock().map_err(|_| anyhow::anyhow!("trace lock"))?.clone();
     Ok(t)
 }
 
 /// A `host-sim drive stream` process sends the ramp at its times and is
 /// killed mid-cruise.
-fn cut_by_kill(rig: &RigConfig, v: f64, dir: &Path) -> Result<Vec<TraceRow>> {
+fn cut_by_kill(rig: &RigConfig, run: &Run, dir: &Path) -> Result<Vec<TraceRow>> {
     let trace: drive::Trace = Arc::new(Mutex::new(Vec::new()));
-    let (addr, stop, h) = start_drive(rig, trace.clone())?;
-    let run = (|| -> Result<()> {
+    let (addr, stop, h) = start_drive(rig, run, trace.clone())?;
+    let v = run.velocity_m_s;
+    let result = (|| -> Result<()> {
         enable(&addr)?;
-        let rows = ramp_rows(v, 1.2, 1e-3);
-        let csv = dir.join(format!("ramp_{v}.csv"));
+        let rows = ramp_rows(run.start_m, v, 1.2, run.period_s);
+        let csv = dir.join(format!("ramp_{}.csv", label(run)));
         let mut w = csv::Writer::from_path(&csv)?;
         w.write_record(["t_s", "position_m", "velocity_m_s"])?;
         for r in &rows {
@@ -163,7 +184,7 @@ fn cut_by_kill(rig: &RigConfig, v: f64, dir: &Path) -> Result<Vec<TraceRow>> {
             .context("starting the streaming client")?;
         // Mid-cruise: past the ramp-up, well before the end.
         let t0 = Instant::now();
-        std::thread::sleep(Duration::from_secs_f64(v / RAMP_ACCELERATION_M_S2 + 0.5));
+        std::thread::sleep(Duration::from_secs_f64(v.abs() / RAMP_ACCELERATION_M_S2 + 0.5));
         child.kill().context("killing the streaming client")?;
         child.wait()?;
         let killed_at = t0.elapsed().as_secs_f64();
@@ -175,7 +196,7 @@ fn cut_by_kill(rig: &RigConfig, v: f64, dir: &Path) -> Result<Vec<TraceRow>> {
     })();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     h.join().map_err(|_| anyhow::anyhow!("drive thread panicked"))??;
-    run?;
+    result?;
     let t = trace.lock().map_err(|_| anyhow::anyhow!("trace lock"))?.clone();
     Ok(t)
 }
@@ -215,26 +236,40 @@ fn write_trace(trace: &[TraceRow], path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// `raising_1000hz_0.200`: names a run's files.
+fn label(run: &Run) -> String {
+    let way = if run.velocity_m_s > 0.0 { "raising" } else { "lowering" };
+    format!("{way}_{:.0}hz_{:.3}", 1.0 / run.period_s, run.velocity_m_s.abs())
+}
+
 pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
     std::fs::create_dir_all(out)?;
     let a_stop = f64::from(rig.control.faults.stop_deceleration_m_s2);
     let v_top = f64::from(rig.control.trajectory.max_velocity_m_s);
-    // The ramp's rows must pass the tool's own checks.
-    let limits = stream::StreamLimits::of(&rig.control, 1e-3);
+    let slowest_period_s = f64::from(rig.control.stream.period_max_s);
+    let l = &rig.control.limits;
+    let (lo, hi) = (f64::from(l.stroke_min_m), f64::from(l.stroke_max_m));
     let mut cases = Vec::new();
-    for v in [0.1, v_top] {
-        stream::check_rows("ramp", &ramp_rows(v, 1.2, 1e-3), &limits)?;
-        let silence = cut_by_silence(rig, v)?;
-        write_trace(&silence, &out.join(format!("trace_silence_{v:.3}.csv")))?;
-        cases.push(analyse("client stops sending", v, a_stop, &silence)?);
-        let killed = cut_by_kill(rig, v, out)?;
-        write_trace(&killed, &out.join(format!("trace_killed_{v:.3}.csv")))?;
-        cases.push(analyse("client killed", v, a_stop, &killed)?);
+    for period_s in [1.0 / FAST_RATE_HZ, slowest_period_s] {
+        // The ramp's rows must pass the tool's own checks.
+        let limits = stream::StreamLimits::of(&rig.control, period_s as f32);
+        for v in [0.1, v_top, -0.1, -v_top] {
+            let start_m = if v > 0.0 { lo + START_M } else { hi - START_M };
+            let run = Run { velocity_m_s: v, period_s, start_m };
+            stream::check_rows("ramp", &ramp_rows(start_m, v, 1.2, period_s), &limits)?;
+            let silence = cut_by_silence(rig, &run)?;
+            write_trace(&silence, &out.join(format!("trace_silence_{}.csv", label(&run))))?;
+            cases.push(analyse("client stops sending", &run, a_stop, &silence)?);
+            let killed = cut_by_kill(rig, &run, out)?;
+            write_trace(&killed, &out.join(format!("trace_killed_{}.csv", label(&run))))?;
+            cases.push(analyse("client killed", &run, a_stop, &killed)?);
+        }
     }
     let all = |f: fn(&Case) -> bool| cases.iter().all(f);
     let summary = serde_json::json!({
         "stop_deceleration_m_s2": a_stop,
         "top_stream_speed_m_s": v_top,
+        "setpoint_rates_hz": [FAST_RATE_HZ, (1.0 / slowest_period_s).round()],
         "bounds": {
             "reverse_speed_m_s": 1e-3,
             "following_um": FOLLOWING_BOUND_M * 1e6,
@@ -245,10 +280,16 @@ pub fn run(rig: &RigConfig, out: &Path) -> Result<serde_json::Value> {
         "following_ok": all(|c| c.following_ok),
         "rest_ok": all(|c| c.rest_ok),
         "latched_every_time": all(|c| c.latched_after_s.is_some()),
+        "every_bar_met": all(|c| c.no_reversal && c.following_ok && c.rest_ok && c.latched_after_s.is_some()),
     });
     std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary)?)?;
-    if cases.iter().any(|c| c.latched_after_s.is_none()) {
-        bail!("stream_timeout was not latched in every case: {}", out.join("summary.json").display());
+    let missed: Vec<String> = cases
+        .iter()
+        .filter(|c| !(c.no_reversal && c.following_ok && c.rest_ok && c.latched_after_s.is_some()))
+        .map(|c| format!("{} {} m/s at {} Hz, {}", c.direction, c.speed_m_s, c.setpoint_rate_hz, c.cut))
+        .collect();
+    if !missed.is_empty() {
+        bail!("a bar was missed ({}): {}", missed.join("; "), out.join("summary.json").display());
     }
     Ok(summary)
 }

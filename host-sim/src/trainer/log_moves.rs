@@ -15,6 +15,8 @@ use std::path::Path;
 pub struct LogPlan {
     /// Payload relative to the rig file's.
     pub payload_scale: f64,
+    /// Where the rod stands when logging starts (m).
+    pub start_m: f64,
     /// Positions moved to in turn (m), each followed by `dwell_s`.
     pub targets_m: Vec<f32>,
     pub dwell_s: f64,
@@ -26,15 +28,17 @@ pub struct LogPlan {
 }
 
 impl LogPlan {
-    /// `cycles` strokes out and back between 0.05 m and 0.45 m, with
-    /// shorter moves in between (the loads at several speeds).
+    /// `cycles` strokes out and back over the whole travel used, 0 to
+    /// 0.45 m, with shorter moves in between (the loads at several
+    /// speeds). The network clamps the displacement to the range it saw,
+    /// so the ends of the travel must be in the log.
     pub fn strokes(payload_scale: f64, cycles: usize, seed: u64) -> Self {
         let mut targets_m = Vec::new();
         for k in 0..cycles {
             let mid = 0.15 + 0.05 * (k % 3) as f32;
-            targets_m.extend([0.45, mid, 0.35, 0.05]);
+            targets_m.extend([0.45, mid, 0.35, 0.0]);
         }
-        Self { payload_scale, targets_m, dwell_s: 0.3, rate_hz: 200, compensation: false, seed }
+        Self { payload_scale, start_m: 0.0, targets_m, dwell_s: 0.3, rate_hz: 200, compensation: false, seed }
     }
 }
 
@@ -54,7 +58,7 @@ pub fn record(rig: &RigConfig, plan: &LogPlan, path: &Path) -> Result<f64> {
     rig.plant.rod.payload_mass_kg *= plan.payload_scale;
     let mut o = DriveOptions::new(rig);
     o.commissioned = true;
-    o.initial_position_m = 0.05;
+    o.initial_position_m = plan.start_m;
     o.seed = plan.seed;
     let mut d = SimDrive::new(o)?;
     if plan.compensation {

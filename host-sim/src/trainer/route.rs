@@ -1,5 +1,7 @@
-//! The whole retraining route as a user walks it, timed: logs from the
-//! simulated drive at three payloads → `dataset-from-logs` → `train
+//! The whole retraining route as a user walks it, timed: the rig's
+//! friction identified and written into the drive's friction feedforward
+//! (docs/tuning.md), logs from the simulated drive at three payloads →
+//! `dataset-from-logs` → `train
 //! --hidden 8` → upload to a simulated drive over TCP → verify (the drive
 //! runs the file's words, a restarted drive runs them from its store, and a
 //! stroke with compensation lands the rod closer than without). Writes
@@ -29,6 +31,10 @@ pub struct RouteArgs {
     /// Stroke cycles logged per payload.
     #[arg(long, default_value_t = 2)]
     pub cycles: usize,
+    /// Log with the friction feedforward as the rig file has it, instead of
+    /// identifying the friction first.
+    #[arg(long)]
+    pub keep_friction: bool,
 }
 
 /// The bar: the whole route within 2 minutes on this machine.
@@ -76,20 +82,62 @@ fn stroke_error_m(rig: &RigConfig, store: &Path, compensation: bool) -> Result<f
     Ok(worst)
 }
 
-/// Runs the route; writes `out/summary.json`.
-pub fn run(a: &RouteArgs) -> Result<serde_json::Value> {
-    let rig = RigConfig::load_or_nominal(a.params.as_ref())?;
-    let out = &a.out;
+/// What the route does on one rig.
+#[derive(Clone, Debug)]
+pub struct RoutePlan {
+    /// Stroke cycles logged per payload.
+    pub cycles: usize,
+    /// Payloads logged, relative to the rig file's.
+    pub payloads: Vec<f64>,
+    /// Seeds: identification `seed`, logs `seed + 1 …`.
+    pub seed: u64,
+    /// Identify the friction and write it into the feedforward before logging.
+    pub identify_friction: bool,
+}
+
+impl RoutePlan {
+    pub fn new(cycles: usize) -> Self {
+        Self { cycles, payloads: vec![0.02, 0.5, 1.0], seed: 20, identify_friction: true }
+    }
+}
+
+/// A route's result: the weights the drive runs after the upload, and the
+/// rig with the drive's parameters as the route left them.
+pub struct RouteOutcome {
+    pub summary: serde_json::Value,
+    pub weights: &'static servo_core::observer::block::Weights,
+    pub rig: RigConfig,
+    pub logged_s: f64,
+    pub moving_s: f64,
+    pub total_s: f64,
+}
+
+/// Runs the route on `rig` into `out` (logs/, dataset/, observer/, flash.bin).
+pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteOutcome> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let t_all = Instant::now();
-    // 1. Logs, as a user records them at three payloads.
+    // 0. The friction, as `tune identify` finds it, into the feedforward:
+    // a lag the speed loop leaves at each move start is not the observer's.
     let t = Instant::now();
-    let payloads = [0.02, 0.5, 1.0];
+    let (rig, friction) = if plan.identify_friction {
+        let (tuned, ident) = crate::tuning::identify_friction_sim(rig, plan.seed)?;
+        let lines: Vec<_> = crate::tuning::friction_param_set_lines(&tuned.control)
+            .into_iter()
+            .map(|(name, v)| serde_json::json!({ "name": name, "before": crate::tuning::friction_param_set_lines(&rig.control).iter().find(|(n, _)| *n == name).map(|(_, b)| *b), "after": v }))
+            .collect();
+        let note = serde_json::json!({ "identified_coulomb_n_m": ident.coulomb_n_m, "identified_viscous_n_m_s_rad": ident.viscous_n_m_s_rad, "param_set": lines });
+        (tuned, note)
+    } else {
+        (rig.clone(), serde_json::Value::Null)
+    };
+    let identify_s = t.elapsed().as_secs_f64();
+    // 1. Logs, as a user records them at each payload.
+    let t = Instant::now();
     let mut logs = Vec::new();
     let mut logged_s = 0.0;
-    for (k, &p) in payloads.iter().enumerate() {
+    for (k, &p) in plan.payloads.iter().enumerate() {
         let path = out.join("logs").join(format!("payload_{k}.csv"));
-        logged_s += record(&rig, &LogPlan::strokes(p, a.cycles, 21 + k as u64), &path)?;
+        logged_s += record(&rig, &LogPlan::strokes(p, plan.cycles, plan.seed + 1 + k as u64), &path)?;
         logs.push(path);
     }
     let log_s = t.elapsed().as_secs_f64();
@@ -144,12 +192,13 @@ pub fn run(a: &RouteArgs) -> Result<serde_json::Value> {
     let total_s = t_all.elapsed().as_secs_f64();
     let summary = serde_json::json!({
         "command": "host-sim observer-route",
-        "stages_s": { "log": log_s, "dataset": dataset_s, "train": train_s, "upload": upload_s, "verify": verify_s },
+        "stages_s": { "identify_friction": identify_s, "log": log_s, "dataset": dataset_s, "train": train_s, "upload": upload_s, "verify": verify_s },
         "total_s": total_s,
         "bar_s": BAR_S,
         "within_bar": total_s <= BAR_S,
+        "friction_feedforward": friction,
         "logged_drive_time_s": logged_s,
-        "payload_scales": payloads,
+        "payload_scales": plan.payloads,
         "dataset": { "runs_elongation": ls.runs_elongation, "runs_contraction": ls.runs_contraction, "samples": ls.samples,
                      "moving_s": ls.moving_s, "load_force_n": [ls.load_force_min_n, ls.load_force_max_n] },
         "train": { "hidden": report.hidden, "test_rmse_um": report.test.rmse_um, "test_uncompensated_rmse_um": report.test_uncompensated.rmse_um },
@@ -160,7 +209,16 @@ pub fn run(a: &RouteArgs) -> Result<serde_json::Value> {
             "reduction_pct": 100.0 * (1.0 - on / off),
         },
     });
-    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary)?)?;
-    println!("{}", serde_json::to_string_pretty(&summary)?);
-    Ok(summary)
+    Ok(RouteOutcome { summary, weights: running, rig, logged_s, moving_s: ls.moving_s, total_s })
+}
+
+/// Runs the route; writes `out/summary.json`.
+pub fn run(a: &RouteArgs) -> Result<serde_json::Value> {
+    let rig = RigConfig::load_or_nominal(a.params.as_ref())?;
+    let mut plan = RoutePlan::new(a.cycles);
+    plan.identify_friction = !a.keep_friction;
+    let r = run_route(&rig, &plan, &a.out)?;
+    std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&r.summary)?)?;
+    println!("{}", serde_json::to_string_pretty(&r.summary)?);
+    Ok(r.summary)
 }

@@ -90,6 +90,11 @@ pub enum TuneCmd {
         /// Diagnostic: propose and check even asks the limits refuse.
         #[arg(long)]
         unchecked: bool,
+        /// The bench on every rig of a family (`host-sim rigs`): a row per
+        /// rig, every loop result and the worst case in summary.json,
+        /// family.md; fails when a rig does.
+        #[arg(long, conflicts_with = "params")]
+        family: Option<PathBuf>,
     },
 }
 
@@ -114,7 +119,14 @@ pub fn run(a: TuneArgs) -> Result<()> {
             let (m, e) = identify(&speed, cur.as_ref(), &rig.control)?;
             let id = Identified::from_fits(&m, e.as_ref());
             let nominal = identify::nominal_mech(&Physics::from_rig(&rig), f64::from(rig.control.startup.expected_load_force_n).max(rig_load_n(&rig)));
-            let doc = serde_json::json!({ "identified": id, "nominal_rig": nominal,
+            // The friction feedforward the identification asks for, as the
+            // `drive param set` lines a bench applies before it logs for the
+            // observer (docs/tuning.md, step 6).
+            let mut with_friction = rig.control;
+            crate::tuning::apply_friction(&mut with_friction, &id);
+            let friction_lines: Vec<_> =
+                crate::tuning::friction_param_set_lines(&with_friction).into_iter().map(|(n, v)| serde_json::json!([n, v])).collect();
+            let doc = serde_json::json!({ "identified": id, "nominal_rig": nominal, "friction_param_set": friction_lines,
                 "parameters": { "reflected_inertia_kg_m2": rig.control.reflected_inertia_kg_m2(),
                     "phase_resistance_ohm": rig.control.motor.phase_resistance_ohm, "inductance_q_h": rig.control.motor.inductance_q_h } });
             std::fs::write(&out, serde_json::to_string_pretty(&doc)?)?;
@@ -126,7 +138,7 @@ pub fn run(a: TuneArgs) -> Result<()> {
                 "r2": m.fit.r2, "rms_residual_n_m": m.fit.rms_residual,
                 "resistance_ohm": e.as_ref().map(|e| [e.resistance_ohm.value, e.resistance_ohm.std_err]),
                 "inductance_h": e.as_ref().map(|e| [e.inductance_h.value, e.inductance_h.std_err]),
-                "nominal_rig": nominal, "written": out }))?);
+                "nominal_rig": nominal, "friction_param_set": friction_lines, "written": out }))?);
             Ok(())
         }
         TuneCmd::Propose {
@@ -169,7 +181,19 @@ pub fn run(a: TuneArgs) -> Result<()> {
             println!("wrote {}/proposal.toml, summary.json, step_*.csv/png", out.display());
             Ok(())
         }
-        TuneCmd::Bench { out, params, cases, unchecked } => {
+        TuneCmd::Bench { out, family: Some(dir), cases, unchecked, .. } => {
+            super::feasible::set_enforced(!unchecked);
+            let rigs = crate::rigs::load_family(&dir)?;
+            let s = super::family::bench_family(&rigs, &dir, cases.as_deref(), &out)?;
+            print!("{}", std::fs::read_to_string(out.join("family.md"))?);
+            println!("worst: {}", serde_json::to_string_pretty(&s["worst"])?);
+            println!("{} of {} rigs pass; wrote {}/{{summary.json, family.md}} and a folder per rig", s["rigs_passed"], s["rigs"], out.display());
+            if s["rigs_passed"] != s["rigs"] {
+                bail!("tune bench: rigs failed: {}", s["rigs_failed"]);
+            }
+            Ok(())
+        }
+        TuneCmd::Bench { out, params, cases, unchecked, family: None } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
             super::feasible::set_enforced(!unchecked);
             let s = bench(&rig, &out, cases.as_deref())?;

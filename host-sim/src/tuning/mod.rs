@@ -6,7 +6,9 @@
 
 pub mod cli;
 pub mod design;
+pub mod family;
 pub mod feasible;
+pub mod filter;
 pub mod identify;
 pub mod measure;
 pub mod model;
@@ -203,12 +205,7 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, rigid:
         let k = f64::from(base.metres_per_rad());
         let reflected = f64::from(base.drive_train.moving_mass_kg) * k * k;
         p.drive_train.rotating_inertia_kg_m2 = (i.inertia_kg_m2 - reflected).max(0.0) as f32;
-        p.drive_train.viscous_friction_n_m_s_rad = i.viscous_n_m_s_rad.max(0.0) as f32;
-        if let Some(tc) = i.coulomb_n_m {
-            let eta = f64::from(base.drive_train.screw_efficiency);
-            let screw = k * (1.0 - eta) / eta * (i.load_n_m / k).abs();
-            p.drive_train.coulomb_friction_n_m = (tc - screw).max(0.0) as f32;
-        }
+        apply_friction(&mut p, i);
         if let Some(r) = i.resistance_ohm {
             p.motor.phase_resistance_ohm = r as f32;
         }
@@ -257,6 +254,45 @@ pub fn propose(rig: &RigConfig, ident: Option<&Identified>, asked: Asked, rigid:
         rule: "P on K_p T_ω(s)/s through the 1 kHz hold; K_p solved for the asked −3 dB frequency".into(),
     };
     Ok(Proposal { asked, plant, current, speed, position, speed_setpoint_weight: sp.weight, rod_mode: mode, params: p })
+}
+
+/// Writes the identified friction into the drive's friction feedforward
+/// (`drive_train.viscous_friction_n_m_s_rad`, `coulomb_friction_n_m`): the
+/// viscous part as identified, the Coulomb part less the screw's
+/// efficiency-law share under the identified load, which the feedforward
+/// adds itself at every load. A rig with more friction than its file says
+/// then meets it in the speed loop's feedforward, not as a lag the speed
+/// integrator winds out at each move start.
+pub fn apply_friction(p: &mut ControlParams, i: &Identified) {
+    let k = f64::from(p.metres_per_rad());
+    p.drive_train.viscous_friction_n_m_s_rad = i.viscous_n_m_s_rad.max(0.0) as f32;
+    if let Some(tc) = i.coulomb_n_m {
+        let eta = f64::from(p.drive_train.screw_efficiency);
+        let screw = k * (1.0 - eta) / eta * (i.load_n_m / k).abs();
+        p.drive_train.coulomb_friction_n_m = (tc - screw).max(0.0) as f32;
+    }
+}
+
+/// The `drive param set` lines of the friction feedforward alone.
+pub fn friction_param_set_lines(p: &ControlParams) -> Vec<(String, f32)> {
+    vec![
+        ("drive_train.viscous_friction_n_m_s_rad".into(), p.drive_train.viscous_friction_n_m_s_rad),
+        ("drive_train.coulomb_friction_n_m".into(), p.drive_train.coulomb_friction_n_m),
+    ]
+}
+
+/// Identifies the simulated rig's friction as `tune identify` does with
+/// no captures given (the same speed and current steps, on the drive's
+/// present parameters) and returns the rig with it written into the
+/// friction feedforward, and what was identified.
+pub fn identify_friction_sim(rig: &RigConfig, seed: u64) -> Result<(RigConfig, Identified)> {
+    let (speed, cur) = simulate_identification_captures(rig, seed)?;
+    let (m, e) = identify(&speed, Some(&cur), &rig.control)?;
+    let ident = Identified::from_fits(&m, e.as_ref());
+    let mut out = rig.clone();
+    apply_friction(&mut out.control, &ident);
+    out.control.validate().map_err(|e| anyhow!("the identified friction does not validate: {e:?}"))?;
+    Ok((out, ident))
 }
 
 /// The `[control]` fragment of a proposal: the gains and what the
@@ -331,7 +367,7 @@ pub fn check_specs(asked: &Asked, p: &ControlParams, hold_a: f64) -> Vec<(Loop, 
     };
     let (cb, sb, pb) = (asked.current_bw_hz, asked.speed_bw_hz, asked.position_bw_hz);
     let (cur_from, cur_to) = (cb / 10.0, (4.0 * cb).min(0.2 * pwm));
-    let (spd_from, spd_to) = (sb / 4.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
+    let (spd_from, spd_to) = (sb / 2.0, (5.0 * sb).min(0.1 * pwm / f64::from(p.rates.speed_loop_divider)));
     let (pos_from, pos_to) = (pb / 4.0, (5.0 * pb).min(0.1 * pwm / f64::from(p.rates.position_loop_divider)));
     let cur_dur = fit_dur(cur_to, (4.0 / cur_from).clamp(0.1, 0.4), 3.0);
     let spd_dur = fit_dur(spd_to, (4.0 / spd_from).clamp(2.0, 8.0), 3.0);
