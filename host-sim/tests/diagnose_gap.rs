@@ -10,14 +10,18 @@
 //! CI runs `gap_smoke` (3 cases). The benchmark writes
 //! `target/diagnose_suite/gap/{suite.json,report.md}`:
 //! `cargo test --release --test diagnose_gap -- --ignored --nocapture`
-//! (`DIAGNOSE_GAP_SET=tuning|seen|holdout` runs one set only).
+//! (`DIAGNOSE_GAP_SET=tuning|seen|holdout` runs one set only;
+//! `DIAGNOSE_GAP_SEED=N` runs the set drawn from seed N alone).
 
 mod diagnose_support;
 
 use diagnose_support::gap::{force_logs, nominal_pair, quiet_nominal, wrong_rig, GapLogs, Timing, WrongParam};
+use diagnose_support::seed_base_env;
 use diagnose_support::truth::nominal_rig;
 use host_sim::diagnose::disturbance::DisturbanceFit;
-use host_sim::diagnose::residual::{fit_regression, Nominal, Physics};
+use host_sim::diagnose::figures::shrink;
+use host_sim::diagnose::fit;
+use host_sim::diagnose::residual::{build_segments, fit_regression, Nominal, Physics, CHANNELS, NCH};
 use host_sim::diagnose::{diagnose_with, Diagnosis, Options};
 use std::fmt::Write as _;
 
@@ -51,6 +55,10 @@ struct Outcome {
     timing_err_ms: Option<f64>,
     edges_within_5ms_pct: Option<f64>,
     disturbance_primary_pct: Option<f64>,
+    /// The most any estimate of the force could remove of the primary
+    /// channel's held-out gap: the same held-out experiment run without
+    /// the events leaves the nominal's own floor (weighted alike), %.
+    ceiling_primary_pct: Option<f64>,
     train_fit_torque_pct: Option<f64>,
     /// Wrong-rig truths: the parameter and its factor, the re-fitted
     /// parameters beyond tolerance, whether the wrong one is among them.
@@ -141,6 +149,7 @@ fn run_case(spec: Spec) -> Outcome {
             o.disturbance_locked = Some(d.locked_to_signals);
         }
         o.train_fit_torque_pct = s.channels.iter().find(|c| c.channel == "torque").map(|c| c.fit_train_pct);
+        o.ceiling_primary_pct = ceiling(&s.primary_channel, g, &d.nominal);
     };
     let d = match spec {
         Spec::Force(timing, seed, factor) => {
@@ -219,6 +228,21 @@ fn run_case(spec: Spec) -> Outcome {
     o
 }
 
+/// Primary-channel shrink if the force were known exactly: the held-out
+/// log's nominal gap against the same experiment's without the events.
+fn ceiling(primary: &str, g: &GapLogs, nominal: &Nominal) -> Option<f64> {
+    let c = CHANNELS.iter().position(|x| *x == primary)?;
+    let tilt = Physics::from_rig(&nominal_rig()).tilt_deg;
+    let mut w = [0.0; NCH];
+    w[c] = 1.0;
+    let gap_of = |log| {
+        let segs = build_segments(log, nominal, tilt).ok()?;
+        let refs: Vec<_> = segs.iter().collect();
+        Some(fit::gap(&refs, None, &w))
+    };
+    Some(shrink(gap_of(&g.held)?, gap_of(&g.held_clean)?))
+}
+
 fn pct(a: usize, b: usize) -> f64 {
     if b == 0 {
         f64::NAN
@@ -235,6 +259,11 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
     let lvl = force.iter().filter(|o| o.level_err_pct.is_some_and(|e| e <= 20.0)).count();
     let tim = force.iter().filter(|o| o.timing_err_ms.is_some_and(|e| e <= 5.0)).count();
     let shr = force.iter().filter(|o| o.verdict == "disturbance" && o.explained_pct >= 70.0).count();
+    // Misses of the 70 % bar whose ceiling is itself under it: the floor,
+    // not the estimate, keeps them short.
+    let shr_capped = force.iter().filter(|o| !(o.verdict == "disturbance" && o.explained_pct >= 70.0) && o.ceiling_primary_pct.is_some_and(|c| c < 70.0)).count();
+    let shr_ceiling = force.iter().filter(|o| o.ceiling_primary_pct.is_some_and(|c| c >= 70.0)).count();
+    let shr_of_reachable = force.iter().filter(|o| o.verdict == "disturbance" && o.explained_pct >= 70.0 && o.ceiling_primary_pct.is_some_and(|c| c >= 70.0)).count();
     let neg_fit = force.iter().filter(|o| o.train_fit_torque_pct.is_some_and(|f| f < 0.0)).count();
     let wr = fam("wrong_rig");
     let wr_ok = wr.iter().filter(|o| o.verdict == "rig_mismatch" && o.wrong_param_refitted == Some(true)).count();
@@ -257,6 +286,9 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "force_level_within_20pct_pct": pct(lvl, n_f),
         "force_event_times_within_5ms_pct": pct(tim, n_f),
         "force_primary_shrink_ge_70_pct": pct(shr, n_f),
+        "force_ceiling_ge_70_cases": shr_ceiling,
+        "force_primary_shrink_ge_70_where_ceiling_ge_70": format!("{shr_of_reachable}/{shr_ceiling}"),
+        "force_misses_with_ceiling_below_70": shr_capped,
         "force_cases_training_fit_below_zero": neg_fit,
         "wrong_rig_cases": wr.len(),
         "wrong_rig_verdict_rig_mismatch_with_param_pct": pct(wr_ok, wr.len()),
@@ -270,14 +302,14 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "wall_s": wall_s,
         "outcomes": out,
     });
-    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f}; training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
-    let _ = writeln!(rep, "| case | seed | verdict | explained % | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f} ({shr_of_reachable}/{shr_ceiling} of those whose ceiling — the same run without the events — is ≥ 70 %; {shr_capped} misses have a ceiling under 70 %); training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
+    let _ = writeln!(rep, "| case | seed | verdict | explained % (ceiling) | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
     let f1 = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.1}"));
     for o in out {
         let _ = writeln!(
             rep,
-            "| {} | {} | {} | {:.1} | {} | {} / {} ({}) | {} ({}) | {} | {} {} | {} | {} |",
-            o.case, o.seed, o.verdict, o.explained_pct, f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
+            "| {} | {} | {} | {:.1} ({}) | {} | {} / {} ({}) | {} ({}) | {} | {} {} | {} | {} |",
+            o.case, o.seed, o.verdict, o.explained_pct, f1(o.ceiling_primary_pct), f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
             f1(o.timing_err_ms), f1(o.edges_within_5ms_pct), f1(o.train_fit_torque_pct), o.refitted.join("; "),
             o.refit_primary_pct.map_or(String::new(), |r| format!("(re-fit {r:.1} %, halves {:?}, stable {:?})", o.refit_halves_pct.map(|h| (h.0.round(), h.1.round())), o.refit_stable)),
             o.disturbance_locked.map_or("–", |b| if b { "yes" } else { "no" }), o.gates.join(", ")
@@ -331,21 +363,26 @@ const HOLDOUT_SEED_BASE: u64 = 4000;
 #[ignore = "large-gap benchmark (≈ 3–9 min): cargo test --release --test diagnose_gap -- --ignored --nocapture"]
 fn gap_suite() {
     let set = std::env::var("DIAGNOSE_GAP_SET").unwrap_or_default();
+    let custom = seed_base_env("DIAGNOSE_GAP_SEED");
     let n: u64 = std::env::var("DIAGNOSE_GAP_N").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
     let t0 = std::time::Instant::now();
     let mut figures = serde_json::json!({});
     let mut rep = String::new();
-    for (key, base, title) in [
-        ("tuning", TUNING_SEED_BASE, "Large-gap suite, tuning seeds (from 0; the method was developed on them)"),
-        ("seen", SEEN_SEED_BASE, "Large-gap suite, seen seeds (from 1000; held out once, then studied while the method was changed)"),
-        ("holdout", HOLDOUT_SEED_BASE, "Large-gap suite, held-out seeds (from 4000; run once after the method was fixed)"),
-    ] {
-        if !set.is_empty() && set != key {
+    let sets = match custom {
+        Some(base) => vec![("custom", base, format!("Large-gap suite, seeds from {base} (DIAGNOSE_GAP_SEED)"))],
+        None => vec![
+            ("tuning", TUNING_SEED_BASE, "Large-gap suite, tuning seeds (from 0; the method was developed on them)".into()),
+            ("seen", SEEN_SEED_BASE, "Large-gap suite, seen seeds (from 1000; held out once, then studied while the method was changed)".into()),
+            ("holdout", HOLDOUT_SEED_BASE, "Large-gap suite, held-out seeds (from 4000; run once after the method was fixed)".into()),
+        ],
+    };
+    for (key, base, title) in sets {
+        if custom.is_none() && !set.is_empty() && set != key {
             continue;
         }
         let t = std::time::Instant::now();
         let out: Vec<Outcome> = specs(base, n).into_iter().map(run_case).collect();
-        let (f, r) = summarize(&out, title, t.elapsed().as_secs_f64());
+        let (f, r) = summarize(&out, &title, t.elapsed().as_secs_f64());
         figures[key] = f;
         figures[format!("{key}_seed_base")] = base.into();
         rep.push_str(&r);

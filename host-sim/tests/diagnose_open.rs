@@ -16,6 +16,7 @@ mod diagnose_support;
 use diagnose_support::open::{
     library_characters, library_logs, mismatched_rig, nominal_logs, novel_logs, Logs, Novel, NOVEL,
 };
+use diagnose_support::seed_base_env;
 use diagnose_support::truth::nominal_rig;
 use host_sim::diagnose::effects::{Effect, ALL};
 use host_sim::diagnose::events;
@@ -461,6 +462,14 @@ const HOLDOUT4_SEED_BASE: u64 = 400;
 #[ignore = "full open-world suite, the tuning seeds and four held-out seed sets (≈ 3–5 min): cargo test --release --test diagnose_open -- --ignored --nocapture"]
 fn open_world_suite() {
     let t0 = std::time::Instant::now();
+    // `DIAGNOSE_OPEN_SEED=N`: the set drawn from seed N alone (3 draws).
+    if let Some(base) = seed_base_env("DIAGNOSE_OPEN_SEED") {
+        let out: Vec<Outcome> = specs(base, 3).into_iter().map(run_case).collect();
+        let (mut figures, rep) = summarize(&out, t0.elapsed().as_secs_f64(), &format!("Open-world suite, seeds from {base} (DIAGNOSE_OPEN_SEED)"));
+        figures["seed_base"] = base.into();
+        write("open", &figures, &rep);
+        return;
+    }
     let out: Vec<Outcome> = specs(0, 2).into_iter().map(run_case).collect();
     let (mut figures, mut rep) = summarize(
         &out,
@@ -506,20 +515,26 @@ const GENERIC_HOLDOUT_SEED_BASE: u64 = 700;
 /// The truths a generic structure should name — sensor delay, structural
 /// resonance, torque-constant drift, a load offset held out of the library
 /// (a constant unmeasured force) — four draws each.
-/// `DIAGNOSE_GENERIC_SET=tuning|seen|holdout` (default all three).
+/// `DIAGNOSE_GENERIC_SET=tuning|seen|holdout` (default all three);
+/// `DIAGNOSE_GENERIC_SEED=N` runs the draws from seed N alone.
 #[test]
 #[ignore = "generic-structure benchmark (≈ 1–2 min): cargo test --release --test diagnose_open generic_structures -- --ignored --nocapture"]
 fn generic_structures() {
     let set = std::env::var("DIAGNOSE_GENERIC_SET").unwrap_or_default();
+    let custom = seed_base_env("DIAGNOSE_GENERIC_SEED");
     let t0 = std::time::Instant::now();
     let mut figures = serde_json::json!({});
     let mut rep = String::new();
-    for (key, base, title) in [
-        ("tuning", 0u64, "Generic structures, tuning seeds (0–3; the classes were developed on them)"),
-        ("seen", GENERIC_SEEN_SEED_BASE, "Generic structures, seen seeds (from 500; held out once, then studied while the classes were changed)"),
-        ("holdout", GENERIC_HOLDOUT_SEED_BASE, "Generic structures, held-out seeds (from 700; run once after the method was fixed)"),
-    ] {
-        if !set.is_empty() && set != key {
+    let sets = match custom {
+        Some(base) => vec![("custom", base, format!("Generic structures, seeds from {base} (DIAGNOSE_GENERIC_SEED)"))],
+        None => vec![
+            ("tuning", 0u64, "Generic structures, tuning seeds (0–3; the classes were developed on them)".into()),
+            ("seen", GENERIC_SEEN_SEED_BASE, "Generic structures, seen seeds (from 500; held out once, then studied while the classes were changed)".into()),
+            ("holdout", GENERIC_HOLDOUT_SEED_BASE, "Generic structures, held-out seeds (from 700; run once after the method was fixed)".into()),
+        ],
+    };
+    for (key, base, title) in sets {
+        if custom.is_none() && !set.is_empty() && set != key {
             continue;
         }
         let t = std::time::Instant::now();
@@ -532,8 +547,9 @@ fn generic_structures() {
             specs.push(Spec::Nominal(base + k));
         }
         let out: Vec<Outcome> = specs.into_iter().map(run_case).collect();
-        let (f, r) = summarize(&out, t.elapsed().as_secs_f64(), title);
+        let (f, r) = summarize(&out, t.elapsed().as_secs_f64(), &title);
         figures[key] = f;
+        figures[format!("{key}_seed_base")] = base.into();
         rep.push_str(&r);
         rep.push('\n');
     }

@@ -8,6 +8,7 @@
 use host_sim::diagnose::disturbance::DisturbanceFit;
 use host_sim::diagnose::events::TimeStructure;
 use host_sim::diagnose::gates::Gate;
+use host_sim::diagnose::generic::GenericFit;
 use host_sim::diagnose::refit::Refit;
 use host_sim::diagnose::residual::NCH;
 use host_sim::diagnose::summary::RankEntry;
@@ -202,6 +203,17 @@ fn decide_with_refit_dist(
     dist: Option<&DisturbanceFit>,
     refit_dist: Option<&DisturbanceFit>,
 ) -> Verdict {
+    decide_full(ranking, gates, refit, dist, refit_dist, None)
+}
+
+fn decide_full(
+    ranking: &[RankEntry],
+    gates: &[Gate],
+    refit: &Refit,
+    dist: Option<&DisturbanceFit>,
+    refit_dist: Option<&DisturbanceFit>,
+    generic: Option<&GenericFit>,
+) -> Verdict {
     let ts = structure(10.0);
     let lib = ranking.first().map_or(0.0, |r| r.primary_shrink_pct);
     decide(&Inputs {
@@ -220,8 +232,49 @@ fn decide_with_refit_dist(
         implausible_after_stack: None,
         refit: Some(refit),
         refit_dist,
-        generic: None,
+        generic,
     })
+}
+
+#[test]
+fn a_generic_structure_removing_as_much_as_a_disturbance_leads_it() {
+    let r = [entry("current_sensor", 60.0, &[], &[])];
+    let refit = Refit {
+        changed: vec!["torque_constant_n_m_per_a 1.05e-1 → 1.10e-1 (+5 %)".into()],
+        primary_shrink_pct: 58.0,
+        halves_primary_shrink_pct: (50.0, 66.0),
+        stable: true,
+        ..Default::default()
+    };
+    let d = on_torque(DisturbanceFit {
+        base: "nominal".into(),
+        primary_shrink_pct: 82.0,
+        over_stack_points: 22.0,
+        heldout_change_points: 58,
+        ..Default::default()
+    });
+    let drift = |primary: f64| GenericFit {
+        class: "gain_drift".into(),
+        channel: "torque".into(),
+        primary_shrink_pct: primary,
+        remainder_shrink_pct: 70.0,
+        train_shrink_pct: 60.0,
+        ..Default::default()
+    };
+    // On what the re-fit leaves the steps keep their own 24 points.
+    let rd = DisturbanceFit { over_stack_points: 24.0, ..d.clone() };
+    // A slow gain removing more than 58 change points: the drift leads.
+    let v = decide_full(&r, &[], &refit, Some(&d), Some(&rd), Some(&drift(89.0)));
+    assert_eq!(v.kind, "generic_structure", "{}", v.headline);
+    assert!(v.headline.contains("at least as much"), "{}", v.headline);
+    // Removing less than the disturbance: the disturbance keeps the lead.
+    let v = decide_full(&r, &[], &refit, Some(&d), Some(&rd), Some(&drift(75.0)));
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
+    // A refused fit names nothing, whatever it removes.
+    let mut refused = drift(95.0);
+    refused.refused = Some("a gain error, not a drift".into());
+    let v = decide_full(&r, &[], &refit, Some(&d), Some(&rd), host_sim::diagnose::generic::named(std::slice::from_ref(&refused)));
+    assert_eq!(v.kind, "disturbance", "{}", v.headline);
 }
 
 #[test]

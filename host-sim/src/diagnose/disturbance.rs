@@ -13,6 +13,10 @@
 //! Change points are located on the held-out residual itself (their times
 //! are what the effect reports); that leaks their positions, not levels.
 
+mod motion;
+
+pub use motion::FOLLOWS_MIN_PCT;
+
 use super::effects::{Effect, MAXP};
 use super::events::{self, Remainder};
 use super::figures::shrink;
@@ -79,6 +83,12 @@ pub struct DisturbanceFit {
     /// the share chance gives, %, and whether it is locked to them.
     pub signal_locked_pct: f64,
     pub chance_pct: f64,
+    /// Cross-validated share of the interval levels' variance the motion
+    /// explains, % (`None`: too few intervals). Change points at logged
+    /// events whose levels do not follow the motion (under
+    /// `FOLLOWS_MIN_PCT`) are a force that comes with the motion, not a
+    /// model error: not locked.
+    pub levels_follow_motion_pct: Option<f64>,
     pub locked_to_signals: bool,
     /// Channels it acts on (chosen on training).
     pub channels: Vec<String>,
@@ -501,6 +511,7 @@ pub fn fit(
             ..l.clone()
         })
         .collect();
+    let follows = motion::levels_follow_motion(held, &intervals);
     let mut abs: Vec<f64> = intervals.iter().map(|l| l.level.abs()).collect();
     abs.sort_by(f64::total_cmp);
     let n_cp: usize = cps.iter().map(Vec::len).sum();
@@ -518,9 +529,11 @@ pub fn fit(
         base: String::new(),
         signal_locked_pct: lk,
         chance_pct: ch,
+        levels_follow_motion_pct: follows,
         locked_to_signals: lk >= LOCKED_RATIO * ch
             && lk - ch >= LOCKED_EXCESS_POINTS
-            && events::lock_significant(&steps, lk, ch, LOCK_ALPHA),
+            && events::lock_significant(&steps, lk, ch, LOCK_ALPHA)
+            && follows.is_none_or(|f| f >= FOLLOWS_MIN_PCT),
         train_gap_after: train_gap,
         threshold_sigma: k,
         train_cv_shrink_pct: shrink(base_t, train_gap),

@@ -2,11 +2,15 @@
 //! a lightly damped resonance, a gain drifting with time, a constant
 //! unmeasured force. Each is a shape with one or two parameters on a grid
 //! and a linear amplitude, fitted on the training remainder of the primary
-//! channel and scored on the held-out remainder, like the library. None is
+//! channel and scored on the held-out remainder, like the library (the
+//! drifting gain, a state of each run, is cross-validated within each part:
+//! `drift`). None is
 //! built from the channel's own measured output: the delay and the drift
 //! act on the channel's *nominal* prediction (from the motion and the
 //! load), the resonance is driven by the nominal thrust (or, on the
 //! position channel, the motor's thrust from the logged current).
+
+mod drift;
 
 use super::effects::{Effect, MAXP};
 use super::events::Remainder;
@@ -28,7 +32,8 @@ pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
         .filter(|g| g.class != best.class)
         .map(|g| g.remainder_shrink_pct)
         .fold(0.0f64, f64::max);
-    (best.remainder_shrink_pct >= GENERIC_MIN_PCT
+    (best.refused.is_none()
+        && best.remainder_shrink_pct >= GENERIC_MIN_PCT
         && best.train_shrink_pct >= GENERIC_MIN_PCT
         && best.remainder_shrink_pct >= GENERIC_LEAD * other)
         .then_some(best)
@@ -50,6 +55,9 @@ pub struct GenericFit {
     /// explains of the remainder), %, and the same on training.
     pub remainder_shrink_pct: f64,
     pub train_shrink_pct: f64,
+    /// Why this fit cannot name the remainder whatever its share (a gain
+    /// that does not drift), if it cannot.
+    pub refused: Option<String>,
 }
 
 /// The channel's nominal prediction (logged signal minus residual).
@@ -64,8 +72,9 @@ fn nominal_pred(s: &Segment, c: usize) -> Vec<f64> {
 fn thrust(s: &Segment, c: usize, nominal: &Nominal) -> Vec<f64> {
     match (nominal, c) {
         // The position channel (scale − motor side) is not the current:
-        // the motor's thrust from the logged current drives the frame.
-        (Nominal::Physics(p), POSITION) => s.iq.iter().map(|i| p.kt * i / p.k).collect(),
+        // the motor's thrust from the logged current drives the frame, as
+        // logged (the smoothed current has lost the band a mode rings in).
+        (Nominal::Physics(p), POSITION) => s.iq_logged.iter().map(|i| p.kt * i / p.k).collect(),
         (Nominal::Physics(p), _) => s.f_ax.iter().map(|f| f * p.k).collect(),
         _ => nominal_pred(s, c),
     }
@@ -317,17 +326,6 @@ pub fn fit(
         }
         try_class("resonance", res_grid, &|b| vec![("gain", b.first().copied().unwrap_or(0.0))]);
     }
-    // A gain drifting with time: the nominal prediction × log time.
-    let drift: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = vec![(
-        Vec::new(),
-        Box::new(move |s: &Segment| {
-            let nv = nominal_pred(s, c);
-            nv.iter().zip(&s.t).map(|(n, t)| vec![n * t, *t]).collect()
-        }),
-    )];
-    try_class("gain_drift", drift, &|b| {
-        vec![("drift_per_s", b.first().copied().unwrap_or(0.0)), ("offset_drift_per_s", b.get(1).copied().unwrap_or(0.0))]
-    });
     // A constant unmeasured force: the load offset's regressors on `c`.
     if matches!(nominal, Nominal::Physics(_)) && (c == TORQUE || c == POSITION) {
         let nominal = nominal.clone();
@@ -344,6 +342,17 @@ pub fn fit(
             }),
         )];
         try_class("constant_force", cf, &|b| vec![("level_n", b.first().copied().unwrap_or(0.0))]);
+    }
+    // A gain drifting with time.
+    out.extend(drift::fit(train, rem_t, held, rem_h, c, nominal_rms_h));
+    // A delay short against the motion's time scale is identified by the
+    // product of amplitude and shift (`N(t + τ) − N(t) ≈ τ N'`): the grid's
+    // shift alone trades against the amplitude, so the delay reported is
+    // the product, the grid point kept as `shape_delay_ms`.
+    for g in out.iter_mut().filter(|g| g.class == "delay") {
+        let (tau, a) = (g.params["delay_ms"], g.params["amplitude"]);
+        g.params.insert("shape_delay_ms".into(), tau);
+        g.params.insert("delay_ms".into(), a * tau);
     }
     out.sort_by(|a, b| b.primary_shrink_pct.total_cmp(&a.primary_shrink_pct));
     out

@@ -104,6 +104,12 @@ pub const SCHEMA: &[Column] = &[
         meaning: "cylinder tilt from horizontal",
         range: (-180.0, 180.0),
     },
+    Column {
+        name: "motor_temperature_c",
+        unit: "°C",
+        meaning: "motor (winding or magnet) temperature: a gain drifting with it",
+        range: (-50.0, 250.0),
+    },
 ];
 
 /// A problem in the input, with its 1-based data row (the header is row 0).

@@ -72,7 +72,13 @@ pub struct Segment {
     /// Gravity + external load, N; nut force (load, rod inertia, seal), N.
     pub f_load: Vec<f64>,
     pub f_ax: Vec<f64>,
+    /// The logged current, Savitzky–Golay smoothed (with the derivatives
+    /// of the inverse dynamics) and as logged: smoothing over ±10 ms
+    /// removes what drives a mode above ≈ 25 Hz.
     pub iq: Vec<f64>,
+    pub iq_logged: Vec<f64>,
+    /// The logged motor temperature, °C (empty: not logged).
+    pub temperature_c: Vec<f64>,
     /// Direction of motion with hysteresis (±1), and samples since reversal.
     pub dir: Vec<f64>,
     pub since_reversal_s: Vec<f64>,
@@ -181,6 +187,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         let reference = get("position_reference_m").map(|v| &v[s..e]);
         let f_ext = get("load_force_n").map(|v| &v[s..e]);
         let tilt = get("tilt_deg").map(|v| &v[s..e]);
+        let temperature = get("motor_temperature_c").map(|v| &v[s..e]);
         let x_motor: Vec<f64> = theta_raw.iter().map(|th| x0 + k * th).collect();
         let xs: &[f64] = scale.unwrap_or(&x_motor);
         let rod_from_scale = phys.is_some() && scale.is_some() && encoder;
@@ -278,6 +285,10 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             seg.dir.push(dir);
             seg.since_reversal_s.push(t[i] - last_rev);
             seg.iq.push(iq.map_or(0.0, |q| q.0));
+            seg.iq_logged.push(iq_raw.as_ref().map_or(0.0, |v| v[i]));
+            if let Some(tc) = temperature {
+                seg.temperature_c.push(tc[i]);
+            }
             seg.input.push(match (reference, &iq) {
                 (Some(r), _) => r[i],
                 (None, Some(q)) => q.0,

@@ -24,6 +24,12 @@ pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
         f_load: sl(&s.f_load),
         f_ax: sl(&s.f_ax),
         iq: sl(&s.iq),
+        iq_logged: sl(&s.iq_logged),
+        temperature_c: if s.temperature_c.is_empty() {
+            Vec::new()
+        } else {
+            sl(&s.temperature_c)
+        },
         dir: sl(&s.dir),
         since_reversal_s: sl(&s.since_reversal_s),
         c_loc: sl(&s.c_loc),

@@ -366,8 +366,17 @@ pub fn decide(i: &Inputs) -> Verdict {
     } else {
         0.0
     });
+    // A generic structure — one shape with a few parameters — that removes
+    // at least as much of the primary gap as every other explanation
+    // leads them: a piecewise-constant disturbance with dozens of change
+    // points or a re-fit of the rig that matches it is the longer story.
+    let generic_leads = !lib_leads
+        && i.generic.is_some_and(|g| {
+            g.primary_shrink_pct >= other_best.max(dist_total).max(r_total).max(const_force).max(lib)
+        });
     let rig_leads = flux_gate.is_some()
         || (!lib_leads
+            && !generic_leads
             && (r_ok || rd_ok && r_total >= rd.map_or(0.0, |x| x.1))
             && r_total >= dist_cmp);
     if rig_leads {
@@ -407,7 +416,7 @@ pub fn decide(i: &Inputs) -> Verdict {
         );
         return v;
     }
-    if !lib_leads && (dist_ok || ((rd_ok || const_force >= MOST_OF_GAP_PCT) && other_best >= MOST_OF_GAP_PCT)) {
+    if !lib_leads && !generic_leads && (dist_ok || ((rd_ok || const_force >= MOST_OF_GAP_PCT) && other_best >= MOST_OF_GAP_PCT)) {
         v.kind = "disturbance".into();
         // A constant force is a disturbance without a time course: the
         // simpler answer unless the time course adds its own points.
@@ -453,7 +462,7 @@ pub fn decide(i: &Inputs) -> Verdict {
                 v.remaining_gap_pct
             );
         }
-    } else if lib >= MOST_OF_GAP_PCT {
+    } else if lib >= MOST_OF_GAP_PCT && !generic_leads {
         let top_name = top.unwrap_or("?");
         let group = group_of(ranking, top_name);
         v.explained_pct = lib;
@@ -491,11 +500,20 @@ pub fn decide(i: &Inputs) -> Verdict {
             .map(|(k, x)| format!("{k} = {x:.4}"))
             .collect::<Vec<_>>()
             .join(", ");
+        let opening = if generic_leads {
+            format!(
+                "A generic structure explains at least as much of the held-out gap as a library stack ({lib_raw:.1} %), a disturbance ({dist_total:.1} %) or a re-fit of the rig's parameters ({:.1} %), with fewer parameters",
+                refit.map_or(0.0, |r| r.primary_shrink_pct.max(0.0))
+            )
+        } else {
+            "No library effect, disturbance or re-fit of the rig's parameters explains most of the held-out gap".to_string()
+        };
         v.headline = format!(
-            "{lead}No library effect, disturbance or re-fit of the rig's parameters explains most of the held-out gap; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; no other generic class comes within a factor {}), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
+            "{lead}{opening}; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; no other generic class comes within a factor {}), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
             match g.class.as_str() {
                 "delay" => "pure delay between the channel and the motion",
                 "resonance" => "lightly damped resonance driven by the thrust",
+                "gain_drift" if g.params.contains_key("gain_per_k") => "gain drifting with the motor temperature",
                 "gain_drift" => "gain drifting with time",
                 "constant_force" => "constant unmeasured force",
                 other => other,

@@ -49,10 +49,12 @@ impl WrongParam {
 }
 
 /// A truth: logs, the true held-out events (start, end, level N, log
-/// time) and the size factor.
+/// time) and the size factor; `held_clean` is the held-out experiment run
+/// without the events (the nominal's own floor on that motion).
 pub struct GapLogs {
     pub train: Log,
     pub held: Log,
+    pub held_clean: Log,
     pub events: Vec<[f64; 3]>,
     pub factor: f64,
     pub f_motion_rms_n: f64,
@@ -123,7 +125,7 @@ fn schedule(timing: Timing, level: f64, starts: &[f64], rng: &mut ChaCha8Rng) ->
 
 /// One log of the experiment `seed` with force events (`factor` × the
 /// motion's force RMS measured on that experiment without them).
-fn with_events(rig: &RigConfig, seed: u64, timing: Timing, factor: f64, sign: f64, rng: &mut ChaCha8Rng) -> (Log, Vec<[f64; 3]>, f64) {
+fn with_events(rig: &RigConfig, seed: u64, timing: Timing, factor: f64, sign: f64, rng: &mut ChaCha8Rng) -> (Log, Vec<[f64; 3]>, f64, Log) {
     let exp = quiet_experiment(rig, seed);
     let clean = run(rig, &UnmodelledEffects::default(), &exp, seed).expect("clean run");
     let f_rms = motion_force_rms(rig, &clean);
@@ -136,7 +138,7 @@ fn with_events(rig: &RigConfig, seed: u64, timing: Timing, factor: f64, sign: f6
             .collect(),
         ..Default::default()
     };
-    (run(rig, &fx, &exp, seed).expect("run with events"), sched, f_rms)
+    (run(rig, &fx, &exp, seed).expect("run with events"), sched, f_rms, clean)
 }
 
 /// Force events of `timing` at a size factor drawn log-uniform in
@@ -146,11 +148,12 @@ pub fn force_logs(rig: &RigConfig, timing: Timing, factor: Option<f64>, seed: u6
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x6a9);
     let factor = factor.unwrap_or_else(|| (rng.random_range(0.2f64.ln()..5f64.ln())).exp());
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    let (train, _, _) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
-    let (held, events, f_rms) = with_events(rig, 2000 + seed, timing, factor, sign, &mut rng);
+    let (train, _, _, _) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
+    let (held, events, f_rms, held_clean) = with_events(rig, 2000 + seed, timing, factor, sign, &mut rng);
     GapLogs {
         train,
         held,
+        held_clean,
         events,
         factor,
         f_motion_rms_n: f_rms,

@@ -97,3 +97,13 @@ pub fn random_effect(effect: Effect, rng: &mut ChaCha8Rng) -> TrueEffect {
         hyper,
     }
 }
+
+/// A seed base given in the environment (`NAME=9000`): runs that set alone,
+/// so a fresh held-out set is drawn without editing the suite.
+pub fn seed_base_env(name: &str) -> Option<u64> {
+    let v = std::env::var(name).ok()?;
+    match v.parse() {
+        Ok(n) => Some(n),
+        Err(_) => panic!("{name}={v:?}: not a seed (a non-negative integer)"),
+    }
+}
