@@ -50,6 +50,9 @@ pub fn bench_family(family: &[FamilyRig], family_dir: &Path, cases: Option<&Path
         if loops == 0 {
             why.push("no ask accepted".to_string());
         }
+        for r in s["check_failed"].as_array().into_iter().flatten() {
+            why.push(format!("{}: the check failed: {}", r["case"].as_str().unwrap_or("?"), r["check_failed"].as_str().unwrap_or("?")));
+        }
         for r in s["table"].as_array().into_iter().flatten().filter(|r| r["pass"].as_bool() != Some(true)) {
             why.push(format!(
                 "{} {}: {:.2} Hz for {} Hz ({:+.0} %), overshoot {:.2} % for {:.1} %",
