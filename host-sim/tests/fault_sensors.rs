@@ -43,6 +43,44 @@ fn a_current_sensor_stuck_at_zero_latches_within_1_ms() {
     assert!(o.final_faults.contains(FaultSet::CURRENT_SENSOR), "{}", o.brief());
 }
 
+/// The current-sum check sees a stuck phase only through that phase's true
+/// current (Σ of the readings is minus it), so at a light payload, cruising
+/// on friction alone, it stays blind until the current through the stuck
+/// phase passes the noise bound. Counted from there, the latch takes the
+/// check's own persistence on every payload; counted from the injection it
+/// would depend on where in the electrical turn the sensor stuck.
+#[test]
+fn a_current_sensor_stuck_at_zero_latches_once_its_phase_carries_current_on_every_payload() {
+    for (payload, r) in payload_rigs() {
+        let sc = catalog::current_sensor_stuck_zero(&r);
+        let o = host_sim::fault_injection::run(&sc).unwrap();
+        assert!(o.violations(&sc.expect).is_empty(), "{payload}: {:?}\n{}", o.violations(&sc.expect), o.brief());
+        assert!(o.first_faults.contains(FaultSet::CURRENT_SENSOR), "{payload}: {}", o.brief());
+        let persistence = u64::from(r.control.faults.current_sum_periods);
+        let n = o.detection_periods().unwrap();
+        assert!((persistence - 1..=persistence + 1).contains(&n), "{payload}: {n} periods, persistence {persistence}");
+        // The reading was right for a while where the phase carried little.
+        let injected = (catalog::FAULT_AT_S / sc.setup.pwm_period_s()).round() as u64;
+        assert!(o.fault_period.unwrap() >= injected, "{payload}");
+    }
+}
+
+/// A frozen count under a light or mid payload: the stationary current
+/// vector brakes the rotor and gravity turns it back, so its back-EMF passes
+/// through zero right when the missing counts are judged (20 ms in). The
+/// rotor ran millimetres unseen before that, which a stall cannot: a lost
+/// encoder and the bridge off on every payload, not a controlled stop.
+#[test]
+fn an_encoder_dropout_is_a_lost_encoder_on_every_payload() {
+    for (payload, r) in payload_rigs() {
+        let sc = catalog::encoder_dropout(&r);
+        let o = host_sim::fault_injection::run(&sc).unwrap();
+        assert!(o.violations(&sc.expect).is_empty(), "{payload}: {:?}\n{}", o.violations(&sc.expect), o.brief());
+        assert!(o.first_faults.contains(FaultSet::ENCODER_LOST), "{payload}: {}", o.brief());
+        assert_bridge_off_after_latch(&o);
+    }
+}
+
 #[test]
 fn a_current_sensor_offset_latches_within_1_ms() {
     run_meeting(&catalog::current_sensor_offset(&rig()));

@@ -186,6 +186,9 @@ impl Controller {
         let count = self.encoder.count();
         let moved = count != self.count_at_last_speed_tick;
         self.count_at_last_speed_tick = count;
+        if moved {
+            self.emf_watch.count_moved();
+        }
         if !matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading) {
             self.speed_error_s = 0.0;
             self.no_count_s = 0.0;
@@ -218,9 +221,11 @@ impl Controller {
         self.no_count_s = if !moved && told_to_turn { self.no_count_s + dt } else { 0.0 };
         if self.no_count_s >= f.encoder_lost_time_s {
             // No count while told to turn: a lost encoder if the back-EMF
-            // says the rotor turns, else a stall (the rotor stands, the
-            // position cannot follow: a controlled stop, not a fall).
-            if self.emf_watch.sees_rotation(&self.params) {
+            // says the rotor turns, or turned a net electrical turn since
+            // the last count (it may be reversing right now), else a stall
+            // (the rotor stands at its last count, the position cannot
+            // follow: a controlled stop, not a fall).
+            if self.emf_watch.sees_rotation(&self.params) || self.emf_watch.turned_since_count() {
                 self.raise(FaultSet::ENCODER_LOST);
             } else {
                 present.insert(FaultSet::POSITION_FOLLOWING);

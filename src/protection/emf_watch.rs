@@ -8,6 +8,17 @@
 //! rather than `|e|`, is blind to what only makes voltage without motion (an
 //! open lead, a current the loop cannot make), which has a fixed direction,
 //! and, netted over a window, to dead time's back-and-forth wobble.
+//!
+//! A window is judged on the motion of its own length, and a rotor that
+//! coasts to rest or reverses (a frozen count under a light hanging load:
+//! the stationary current vector brakes it, gravity turns it back) lets `e`
+//! fall below the threshold EMF and restart the window just when the
+//! missing counts are judged. What separates that from a stall is how far
+//! the rotor went since the count last moved: a stalled rotor stands at its
+//! last count (under one count of twist), so `e` cannot turn a net
+//! electrical turn in the frozen frame; a rotor the counter lost can, and
+//! did as soon as it ran a quarter of a mechanical turn (at four pole pairs)
+//! unseen. That net angle is kept across windows and cleared by a count.
 
 use crate::foc::Dq;
 use crate::math::atan2;
@@ -22,11 +33,27 @@ pub struct EmfWatch {
     /// little; a slipping rotor turns one way).
     window_s: f32,
     turned_rad: f32,
+    /// The net angle `e` turned since the count last moved (signed; steps
+    /// with too little EMF to judge are left out, not reset).
+    turned_since_count_rad: f32,
 }
 
 impl EmfWatch {
     pub fn reset(&mut self) {
         *self = Self::default();
+    }
+
+    /// The count moved: the rotor is where the encoder says.
+    pub fn count_moved(&mut self) {
+        self.turned_since_count_rad = 0.0;
+    }
+
+    /// True when `e` turned a net electrical turn or more since the count
+    /// last moved: the rotor ran on unseen (a standing rotor's `e` keeps its
+    /// direction in the standing frame; current steps swing it and bring it
+    /// back, they do not wind it round).
+    pub fn turned_since_count(&self) -> bool {
+        self.turned_since_count_rad.abs() >= core::f32::consts::TAU
     }
 
     /// True when the window judged so far shows `e` turning, on average,
@@ -59,6 +86,9 @@ impl EmfWatch {
             return false;
         }
         let step_rad = atan2(prev.d * e.q - prev.q * e.d, prev.d * e.d + prev.q * e.q);
+        if step_rad.abs() <= FRAC_PI_2 {
+            self.turned_since_count_rad += step_rad;
+        }
         if step_rad.abs() > FRAC_PI_2 {
             // Half a turn or more between two looks is no slip (at the
             // highest legal speed a slipping frame turns `e` by a quarter

@@ -42,6 +42,7 @@ fn expect(faults: FaultSet, reaction: Mode, within_periods: u64) -> Expect {
         current_margin_a: CURRENT_MARGIN_A,
         stroke_margin_m: STROKE_MARGIN_M,
         rod_speed_after_latch_max_m_s: None,
+        rod_no_faster_than_impact: false,
     }
 }
 
@@ -53,6 +54,7 @@ fn ride_through() -> Expect {
         current_margin_a: CURRENT_MARGIN_A,
         stroke_margin_m: STROKE_MARGIN_M,
         rod_speed_after_latch_max_m_s: None,
+        rod_no_faster_than_impact: false,
     }
 }
 
@@ -430,18 +432,14 @@ pub fn stall(rig: &RigConfig) -> Scenario {
         commands: moving(),
         duration_s: 1.2,
         fault_at_s: None,
-        // After the latch the rod only springs back off the obstacle (the
-        // structure's stored deflection); a bridge switched off under the
-        // load would let it fall at well over this.
-        expect: Expect {
-            rod_speed_after_latch_max_m_s: Some(STALL_ROD_SPEED_MAX_M_S),
-            ..expect(FaultSet::POSITION_FOLLOWING, Mode::Stopping, 1000)
-        },
+        // After the latch the rod only rings on the contact (the payload on
+        // the structure's and the obstacle's stiffness, fed by the impact
+        // and decaying), never faster than it struck; where the latch falls
+        // in that ringing is chance. A bridge switched off under the load
+        // lets it fall (g over the brake's engage time) faster than that.
+        expect: Expect { rod_no_faster_than_impact: true, ..expect(FaultSet::POSITION_FOLLOWING, Mode::Stopping, 1000) },
     }
 }
-
-/// A stall's bound on the rod speed after the latch: half the move speed.
-pub const STALL_ROD_SPEED_MAX_M_S: f64 = 0.1;
 
 /// I²t: the winding's time constant shortened to 1 s so the run is short
 /// (detection time scales with it), and from 0.5 s an extra load that makes

@@ -21,6 +21,7 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, out: &Path) -> Result
         &[
             ("scenarios_passed", Worst::Min),
             ("stall_rod_speed_after_latch_m_s", Worst::Max),
+            ("stall_rod_speed_after_latch_over_impact", Worst::Max),
             ("stall_travel_after_latch_mm", Worst::Max),
             ("stroke_excess_max_mm", Worst::Max),
             ("peak_current_after_fault_max_a", Worst::Max),
@@ -43,6 +44,10 @@ fn row(rig: &str, s: &[ScenarioSummary]) -> RigRow {
             ("scenarios".into(), Some(s.len() as f64)),
             ("scenarios_passed".into(), Some(s.iter().filter(|r| r.passed).count() as f64)),
             ("stall_rod_speed_after_latch_m_s".into(), stall.and_then(|r| r.rod_speed_after_latch_max_m_s)),
+            (
+                "stall_rod_speed_after_latch_over_impact".into(),
+                stall.and_then(|r| Some(r.rod_speed_after_latch_max_m_s? / r.impact_speed_m_s?)),
+            ),
             ("stall_travel_after_latch_mm".into(), stall.and_then(|r| r.travel_after_latch_mm).map(f64::abs)),
             ("stroke_excess_max_mm".into(), max(&|r| r.stroke_excess_mm)),
             ("peak_current_after_fault_max_a".into(), max(&|r| r.peak_current_after_fault_a)),

@@ -39,6 +39,8 @@ pub struct ScenarioSummary {
     pub rod_range_m: (f64, f64),
     pub travel_after_latch_mm: Option<f64>,
     pub rod_speed_after_latch_max_m_s: Option<f64>,
+    /// The rod's speed when it met an obstacle (the stall's bound after the latch).
+    pub impact_speed_m_s: Option<f64>,
     pub rod_speed_end_m_s: f64,
     pub hardware_ocp_period: Option<u64>,
     /// Periods from the fault to the comparator trip.
@@ -76,6 +78,7 @@ pub fn summarize(sc: &Scenario, o: &Outcome) -> ScenarioSummary {
         rod_range_m: o.rod_range_m,
         travel_after_latch_mm: o.travel_after_latch_m.map(|x| x * 1e3),
         rod_speed_after_latch_max_m_s: o.rod_speed_after_latch_max_m_s,
+        impact_speed_m_s: o.impact_speed_m_s,
         rod_speed_end_m_s: o.rod_speed_end_m_s,
         hardware_ocp_period: o.hardware_ocp_period,
         hardware_ocp_after_periods: o.hardware_ocp_period.zip(o.fault_period).map(|(h, f)| h.saturating_sub(f)),

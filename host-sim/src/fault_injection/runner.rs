@@ -74,6 +74,10 @@ pub struct Expect {
     /// The rod's speed after the latch stays below this (a controlled stop
     /// must not let the load run); `None`: not judged.
     pub rod_speed_after_latch_max_m_s: Option<f64>,
+    /// After the latch the rod is never faster than it struck an obstacle
+    /// (`Outcome::impact_speed_m_s`): it rings on the contact, fed by the
+    /// impact and decaying; faster means it is driven or falling.
+    pub rod_no_faster_than_impact: bool,
 }
 
 /// A named fault scenario.
@@ -95,12 +99,15 @@ pub struct Scenario {
 
 impl Scenario {
     /// When the fault starts: `fault_at_s`, else the earliest injection
-    /// window (an obstacle counts from the first contact instead, see `run`).
+    /// window. An obstacle counts from the first contact instead, and a
+    /// stuck current sensor from the first period its reading is wrong by
+    /// more than the current-sum bound (see `run`): until then it reads what
+    /// flows, and nothing can tell it from a working one.
     pub fn fault_start_s(&self) -> Option<f64> {
         self.fault_at_s.or_else(|| {
             self.injections
                 .iter()
-                .filter(|t| !matches!(t.injection, Injection::Obstacle { .. }))
+                .filter(|t| !matches!(t.injection, Injection::Obstacle { .. } | Injection::CurrentStuck { .. }))
                 .map(|t| t.window.start_s)
                 .reduce(f64::min)
         })
@@ -173,6 +180,8 @@ pub struct Outcome {
     pub travel_after_latch_m: Option<f64>,
     /// Largest rod speed after the latch.
     pub rod_speed_after_latch_max_m_s: Option<f64>,
+    /// The rod's speed when it first touched an obstacle.
+    pub impact_speed_m_s: Option<f64>,
     pub rod_speed_end_m_s: f64,
     /// First non-finite value found (where, which period).
     pub non_finite: Option<(u64, String)>,
@@ -275,6 +284,15 @@ impl Outcome {
         if let (Some(bound), Some(v_max)) = (e.rod_speed_after_latch_max_m_s, self.rod_speed_after_latch_max_m_s) {
             if v_max > bound {
                 v.push(format!("rod reached {v_max:.3} m/s after the latch, bound {bound} m/s"));
+            }
+        }
+        if e.rod_no_faster_than_impact {
+            match (self.impact_speed_m_s, self.rod_speed_after_latch_max_m_s) {
+                (Some(impact), Some(v_max)) if v_max > impact => {
+                    v.push(format!("rod reached {v_max:.3} m/s after the latch, faster than its {impact:.3} m/s impact"))
+                }
+                (None, _) => v.push("the rod never touched the obstacle".into()),
+                _ => {}
             }
         }
         if let Some((period, what)) = &self.non_finite {
@@ -434,6 +452,7 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
         rod_range_m: (f64::INFINITY, f64::NEG_INFINITY),
         travel_after_latch_m: None,
         rod_speed_after_latch_max_m_s: None,
+        impact_speed_m_s: None,
         rod_speed_end_m_s: 0.0,
         non_finite: None,
         duty_out_of_range: 0,
@@ -469,6 +488,9 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
                         if out.fault_period.is_none() {
                             out.fault_period = Some(n);
                         }
+                        if out.impact_speed_m_s.is_none() {
+                            out.impact_speed_m_s = Some(cl.plant.state().v_rod_m_s.abs());
+                        }
                     }
                 }
                 Injection::OpenPhase { phase } => open = Some(phase),
@@ -477,6 +499,23 @@ pub fn run(sc: &Scenario) -> Result<Outcome> {
                     cl.controller.report_isr_overrun();
                 }
                 _ => {}
+            }
+        }
+        // A sensor stuck at a value is a fault once the phase's true
+        // current leaves that value by more than the noise bound of the
+        // three-phase sum (`faults.current_sum_max_a`): the sum is the
+        // only witness, and it is the stuck phase's error.
+        if out.fault_period.is_none() && sc.fault_at_s.is_none() {
+            let truth = cl.plant.state().phase_current_a;
+            let bound = f64::from(control.faults.current_sum_max_a);
+            let wrong = sc.injections.iter().any(|timed| match timed.injection {
+                Injection::CurrentStuck { phase, value_a } => {
+                    timed.window.contains(t, dt) && (truth[phase] - f64::from(value_a)).abs() > bound
+                }
+                _ => false,
+            });
+            if wrong {
+                out.fault_period = Some(n);
             }
         }
         let faulty_now = out.fault_period.is_some();

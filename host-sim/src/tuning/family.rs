@@ -5,7 +5,7 @@
 use super::cli::{bench, BenchCase};
 use crate::rigs::family::{write_family_report, RigRow, Worst};
 use crate::rigs::FamilyRig;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -34,21 +34,36 @@ fn rig_figures(s: &serde_json::Value) -> (usize, usize, Option<f64>, Option<f64>
 /// rigs in parallel; each rig's bench in `out/<rig>/`, the family's in `out`.
 pub fn bench_family(family: &[FamilyRig], family_dir: &Path, cases: Option<&Path>, out: &Path) -> Result<serde_json::Value> {
     let t0 = std::time::Instant::now();
-    let done = family
-        .par_iter()
-        .map(|r| {
-            let s = bench(&r.rig, &out.join(&r.name), cases).with_context(|| r.name.clone())?;
-            Ok((r.name.clone(), s))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    // A rig whose bench stops (its identification's tests latch a fault,
+    // say) is a failed row naming why; the other rigs still report.
+    let done: Vec<(String, Result<serde_json::Value>)> =
+        family.par_iter().map(|r| (r.name.clone(), bench(&r.rig, &out.join(&r.name), cases))).collect();
     let mut rows = Vec::new();
     let mut table = Vec::new();
     let mut refused = Vec::new();
     for (name, s) in &done {
+        let s = match s {
+            Ok(s) => s,
+            Err(e) => {
+                rows.push(RigRow {
+                    rig: name.clone(),
+                    passed: false,
+                    verdict: format!("the bench stopped: {e:#}"),
+                    figures: ["loops_accepted", "loops_passed", "cases_refused", "bandwidth_error_worst_pct", "bandwidth_error_worst_abs_pct", "overshoot_excess_worst_pct"]
+                        .iter()
+                        .map(|n| ((*n).to_string(), None))
+                        .collect(),
+                });
+                continue;
+            }
+        };
         let (loops, pass, bw, os, n_refused) = rig_figures(s);
         let mut why = vec![];
         if loops == 0 {
             why.push("no ask accepted".to_string());
+        }
+        for r in s["check_failed"].as_array().into_iter().flatten() {
+            why.push(format!("{}: the check failed: {}", r["case"].as_str().unwrap_or("?"), r["check_failed"].as_str().unwrap_or("?")));
         }
         for r in s["table"].as_array().into_iter().flatten().filter(|r| r["pass"].as_bool() != Some(true)) {
             why.push(format!(

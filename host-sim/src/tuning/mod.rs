@@ -79,6 +79,11 @@ pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(V
     Ok((speed, cur))
 }
 
+/// How much the check widens the following-error bound for its own tests
+/// (on a drive: `param set faults.position_following_error_m` to this
+/// multiple for the tests, back after).
+pub const TEST_FOLLOWING_ERROR_FACTOR: f32 = 2.0;
+
 /// Corner of the zero-phase low-pass on the current-step sequences.
 pub const ELECTRICAL_FILTER_HZ: f64 = 2000.0;
 
@@ -404,6 +409,15 @@ pub struct CheckResult {
 
 /// Runs the check's tests on the simulated rig with `params`.
 pub fn check(rig: &RigConfig, params: ControlParams, asked: &Asked, seed: u64) -> Result<Vec<CheckResult>> {
+    // The tests' amplitudes follow the following-error bound (half of it
+    // for the position step, 0.4 for its chirp); the check doubles it for
+    // its own tests, so that Coulomb friction (≈ 1.4 mm of travel before a
+    // 5 Hz speed loop's integral holds it) stays a small share of the
+    // position tests: at the shipped bound the 1 Hz position loop read
+    // 22–30 % low on the friction-heavy rigs of the family, at twice the
+    // bound within 17 %. The proposal keeps the rig's bound.
+    let mut params = params;
+    params.faults.position_following_error_m *= TEST_FOLLOWING_ERROR_FACTOR;
     let mut cl = simcheck::holding(rig, params, X0_M, seed)?;
     let hold_a = f64::from(cl.controller.telemetry().current_q_a);
     let mut out = Vec::new();

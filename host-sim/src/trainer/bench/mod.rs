@@ -39,7 +39,7 @@ pub struct BenchArgs {
     /// Only these rigs (comma-separated names, as in summary.json).
     #[arg(long, value_delimiter = ',')]
     pub rigs: Vec<String>,
-    /// Only these figure groups (comma-separated: shipped, retrained).
+    /// Only these figure groups (comma-separated: shipped, retrained, no_load_cell).
     #[arg(long, value_delimiter = ',')]
     pub groups: Vec<String>,
     /// Stroke cycles logged per payload for retraining.
@@ -108,10 +108,12 @@ pub fn run(a: &BenchArgs) -> Result<serde_json::Value> {
         let t = Instant::now();
         let rows = f(&chosen, a)?;
         group_notes.insert((*name).into(), serde_json::json!({ "what": what, "wall_s": t.elapsed().as_secs_f64() }));
-        for (row, m) in rows.iter().zip(table.iter_mut()) {
+        for row in &rows {
             if row.passed == Some(false) {
                 failed.push(format!("{name} on {}: {:.1} % < {:.0} %", row.rig, row.reduction_pct, row.bar_pct.unwrap_or(0.0)));
             }
+            // A group may give rows for some rigs only: each goes to its rig's line.
+            let m = table.iter_mut().find(|m| m["rig"] == row.rig.as_str()).with_context(|| format!("{name}: a row for an unknown rig {}", row.rig))?;
             m.insert((*name).into(), serde_json::to_value(row)?);
         }
     }
