@@ -74,7 +74,12 @@ impl Controller {
         let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
         self.q_current_limit_a = iq_max;
         let (mut lo, mut hi) = (-iq_max, iq_max);
-        if self.limits.contains(LimitFlags::VOLTAGE) {
+        // At standstill under a closed brake a voltage-limited period is the
+        // current loop slewing to the preloaded hold current (kp times the
+        // step exceeds the circle above about 11.8 A), not the back-EMF
+        // circle: narrowing there would clamp the speed integrator's preset
+        // to the current flowing in that first period and throw the hold away.
+        if self.limits.contains(LimitFlags::VOLTAGE) && self.mode != Mode::Preloading {
             let reachable = self.current_dq.q.abs() + VOLTAGE_LIMITED_Q_MARGIN_A;
             lo = crate::math::max(lo, -reachable);
             hi = crate::math::min(hi, reachable);
