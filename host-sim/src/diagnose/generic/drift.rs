@@ -127,28 +127,44 @@ fn with_temperature(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], re
     let own_pts = shrink(base_t, after_t) - shrink(base_t, const_t);
     let (t_lo, t_hi) = train.iter().flat_map(|s| &s.temperature_c).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(*t), b.max(*t)));
     let change_pct = 100.0 * b.get(1).copied().unwrap_or(0.0).abs() * (t_hi - t_lo).max(0.0);
+    let mut g = drift_fit(
+        c,
+        own_pts,
+        change_pct,
+        "one following the temperature",
+        "over the logged temperatures",
+        [shrink(nominal_rms_h, after_h), shrink(base_h, after_h), shrink(base_t, after_t)],
+    );
+    g.params.insert("gain_per_k".into(), b.get(1).copied().unwrap_or(0.0));
+    g.params.insert("gain_at_mean_temperature".into(), b.first().copied().unwrap_or(0.0));
+    g.params.insert("mean_temperature_c".into(), t_ref);
+    Some(g)
+}
+
+/// A gain-drift result on channel `c`, refused when a constant gain explains
+/// nearly as much (`own_pts` over it) or the gain would move implausibly far
+/// (`change_pct` over `span`). `shrinks`: primary held-out, remainder
+/// held-out, remainder training.
+fn drift_fit(c: usize, own_pts: f64, change_pct: f64, drift: &str, span: &str, shrinks: [f64; 3]) -> GenericFit {
     let refused = if own_pts < OVER_CONSTANT_PTS {
-        Some(format!("on training a constant gain explains within {OVER_CONSTANT_PTS} points as much as one following the temperature ({own_pts:.1} points less): a gain error, not a drift"))
+        Some(format!("on training a constant gain explains within {OVER_CONSTANT_PTS} points as much as {drift} ({own_pts:.1} points less): a gain error, not a drift"))
     } else if change_pct > MAX_GAIN_CHANGE_PCT {
-        Some(format!("the gain would move by {change_pct:.0} % over the logged temperatures (a drifting gain moves under {MAX_GAIN_CHANGE_PCT:.0} %): a slow signal of another kind"))
+        Some(format!("the gain would move by {change_pct:.0} % {span} (a drifting gain moves under {MAX_GAIN_CHANGE_PCT:.0} %): a slow signal of another kind"))
     } else {
         None
     };
     let mut g = GenericFit {
         class: "gain_drift".into(),
         channel: CHANNELS[c].into(),
-        primary_shrink_pct: shrink(nominal_rms_h, after_h),
-        remainder_shrink_pct: shrink(base_h, after_h),
-        train_shrink_pct: shrink(base_t, after_t),
+        primary_shrink_pct: shrinks[0],
+        remainder_shrink_pct: shrinks[1],
+        train_shrink_pct: shrinks[2],
         refused,
         ..Default::default()
     };
     g.params.insert("gain_change_pct".into(), change_pct);
-    g.params.insert("gain_per_k".into(), b.get(1).copied().unwrap_or(0.0));
-    g.params.insert("gain_at_mean_temperature".into(), b.first().copied().unwrap_or(0.0));
-    g.params.insert("mean_temperature_c".into(), t_ref);
     g.params.insert("over_constant_gain_points".into(), own_pts);
-    Some(g)
+    g
 }
 
 /// Weighted least squares of `y` on the sparse rows of `x` where `keep`.
@@ -235,24 +251,14 @@ pub fn fit(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Rem
     };
     let own_pts = shrink(base_t, after_t) - shrink(base_t, const_t);
     let change_pct = if hi >= lo { 100.0 * (hi - lo) } else { 0.0 };
-    let refused = if own_pts < OVER_CONSTANT_PTS {
-        Some(format!("on training a constant gain per run explains within {OVER_CONSTANT_PTS} points as much ({own_pts:.1} points less): a gain error, not a drift"))
-    } else if change_pct > MAX_GAIN_CHANGE_PCT {
-        Some(format!("the gain would move by {change_pct:.0} % over a run (a drifting gain moves under {MAX_GAIN_CHANGE_PCT:.0} %): a slow signal of another kind"))
-    } else {
-        None
-    };
-    let mut g = GenericFit {
-        class: "gain_drift".into(),
-        channel: CHANNELS[c].into(),
-        primary_shrink_pct: shrink(nominal_rms_h, after_h),
-        remainder_shrink_pct: shrink(base_h, after_h),
-        train_shrink_pct: shrink(base_t, after_t),
-        refused,
-        ..Default::default()
-    };
+    let mut g = drift_fit(
+        c,
+        own_pts,
+        change_pct,
+        "a gain drifting within each run",
+        "over a run",
+        [shrink(nominal_rms_h, after_h), shrink(base_h, after_h), shrink(base_t, after_t)],
+    );
     g.params.insert("drift_per_s".into(), slope);
-    g.params.insert("gain_change_pct".into(), change_pct);
-    g.params.insert("over_constant_gain_points".into(), own_pts);
     Some(g)
 }
