@@ -110,8 +110,8 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             let s = match o {
                 ObserverCmd::Status => observer::status(c)?,
                 ObserverCmd::Upload { model } => {
-                    let w = observer::read_model(&model)?;
-                    observer::upload(c, &w).with_context(|| format!("uploading {}", model.display()))?
+                    let (w, source) = observer::read_model_file(&model)?;
+                    observer::upload(c, &w, source).with_context(|| format!("uploading {} (trained on the {})", model.display(), source.name()))?
                 }
                 ObserverCmd::Compiled => observer::use_compiled(c)?,
             };
