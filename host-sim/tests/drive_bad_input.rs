@@ -152,3 +152,28 @@ fn ctrl_c_mid_stream_ends_it_with_a_stop_and_says_so() {
     assert_eq!(st.mode, servo_core::Mode::Running);
     assert!(st.speed_rad_s.abs() < 1.0, "still moving: {} rad/s", st.speed_rad_s);
 }
+
+#[test]
+fn a_parameter_file_with_a_typo_is_refused_naming_the_path_and_the_likely_one() {
+    use host_sim::tool::config_file::read_leaves;
+    let d = dir("toml");
+    let err = |name: &str, text: &str| {
+        let p = d.join(name);
+        write(&p, text);
+        format!("{:#}", read_leaves(&p).unwrap_err())
+    };
+    let e = err("typo.toml", "[control.speed_pi]\nkpp = 0.3\n");
+    assert!(e.contains("typo.toml: `control.speed_pi.kpp`: no such parameter: did you mean `control.speed_pi.kp`?") && e.contains("nothing was sent"), "{e}");
+    let e = err("table.toml", "[speed_pi]\nkp = 0.3\n");
+    assert!(e.contains("under `[control]`: `control.speed_pi.kp`"), "{e}");
+    let e = err("enum.toml", "[control.homing]\nmethod = \"hardstop\"\n");
+    assert!(e.contains("`control.homing.method`: \"hardstop\" is not one of \"HardStop\", \"Switch\""), "{e}");
+    let e = err("type.toml", "[control.speed_pi]\nkp = \"abc\"\n");
+    assert!(e.contains("`control.speed_pi.kp`: \"abc\" is not a number"), "{e}");
+    let e = err("empty.toml", "# nothing\n");
+    assert!(e.contains("empty.toml: no parameters"), "{e}");
+    // A sane file still reads.
+    let p = d.join("ok.toml");
+    write(&p, "[control.speed_pi]\nkp = 0.3\n");
+    assert_eq!(read_leaves(&p).unwrap().len(), 1);
+}
