@@ -325,3 +325,18 @@ fn a_set_home_beyond_the_stroke_on_a_running_drive_is_refused() {
     // Within the stroke it is taken.
     assert!(c.ask(Request::Command(DriveCommand::SetHome { position_m: 0.2 })).is_ok());
 }
+
+#[test]
+fn a_test_asked_while_the_brake_still_opens_waits_for_it() {
+    // A brake that takes 3 s of drive time to open: the predicted
+    // test is asked as soon as the drive reports Running, while the brake
+    // still opens, and the drive refuses tests until it has.
+    let rig = RigConfig::nominal().unwrap();
+    let mut params = rig.control.clone();
+    params.brake.release_time_s = 3.0;
+    let spec = tool::test::Spec::step(tool::test::Target::Position, 0.001, 0.2);
+    let cap = tool::test::predict(&rig, params, 0.25, &spec).unwrap();
+    let position = &cap.values[1];
+    let moved = position.last().unwrap() - position.first().unwrap();
+    assert!((moved - 0.001).abs() < 1e-4, "the 1 mm step moved {moved} m");
+}

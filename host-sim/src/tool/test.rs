@@ -3,17 +3,18 @@
 //! gains (the drive's parameters fetched with `param get`) on the rig.
 
 use super::analysis::{frf_figures, h1, step_figures, Frf, FrfFigures, StepFigures};
-use super::client::Client;
+use super::client::{describe, request_text, Client};
 use super::{capture_with, fetch_params, CaptureData};
 use crate::config::RigConfig;
 use crate::drive::{self, DriveOptions, Pace};
 use crate::report::plots::{line_chart, Series};
 use anyhow::{bail, Result};
 use servo_core::protocol::{
-    CaptureConfig, CaptureTrigger, ChirpTarget, DriveCommand, Reply, Request, Signal, TestSignal,
+    CaptureConfig, CaptureTrigger, ChirpTarget, DriveCommand, Error, Reply, Request, Signal, TestSignal,
 };
+use servo_core::Reason;
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum Target {
@@ -132,8 +133,29 @@ pub fn capture_test(c: &mut Client, spec: &Spec, pwm_hz: f64) -> Result<CaptureD
     let cfg = spec.capture_config(pwm_hz)?;
     let test = spec.signal();
     let wait = Duration::from_secs_f64(10.0 + 20.0 * spec.duration_s);
-    capture_with(c, cfg, move |c| c.ask(Request::Test(test)).map(|_| ()), wait)
+    capture_with(c, cfg, move |c| start_test(c, test), wait)
 }
+
+/// Starts a test, waiting out the brake's release after `Enable`: the drive
+/// refuses a test while its brake still opens (`brake.release_time_s` of
+/// drive time), which a test sent right after `Enable` meets.
+fn start_test(c: &mut Client, test: TestSignal) -> Result<()> {
+    let started = Instant::now();
+    loop {
+        match c.request(Request::Test(test))? {
+            Reply::Error(Error::Test { reason: Reason::BrakeOpening }) if started.elapsed() < BRAKE_WAIT_MAX => {
+                c.poll(Duration::from_millis(5))?;
+                c.telemetry.clear();
+            }
+            Reply::Error(e) => bail!("{}: refused: {}", request_text(&Request::Test(test)), describe(&e)),
+            _ => return Ok(()),
+        }
+    }
+}
+
+/// Wall time a test waits for the brake to open before its refusal is the
+/// answer (preload and release take a fraction of a second of drive time).
+const BRAKE_WAIT_MAX: Duration = Duration::from_secs(10);
 
 /// The same test on a fresh simulated drive with `params` (fast pacing,
 /// commissioned, enabled at `position_m`).
