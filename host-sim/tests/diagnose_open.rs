@@ -190,7 +190,7 @@ fn run_case(spec: Spec) -> Outcome {
         generic_named: named.as_ref().map(|n| n.0.clone()),
         generic_params: named.as_ref().map_or(String::new(), |n| n.1.iter().map(|(k, x)| format!("{k}={x:.4}")).collect::<Vec<_>>().join(", ")),
         generic_param_err_pct: param_err,
-        generic_fits: s.generic.iter().take(4).map(|g| format!("{} on {}: remainder {:.1} % (train {:.1} %), gap {:.1} % {:?}", g.class, g.channel, g.remainder_shrink_pct, g.train_shrink_pct, g.primary_shrink_pct, g.params)).collect(),
+        generic_fits: s.generic.iter().take(4).map(|g| format!("{} on {}: remainder {:.1} % (train {:.1} %), gap {:.1} % {:?} beyond {:?}", g.class, g.channel, g.remainder_shrink_pct, g.train_shrink_pct, g.primary_shrink_pct, g.params, g.beyond_pct)).collect(),
         case: name,
         family,
         category,

@@ -11,6 +11,7 @@
 //! position channel, the motor's thrust from the logged current).
 
 mod drift;
+mod overlap;
 mod resonance;
 
 use resonance::rod_mode;
@@ -23,23 +24,20 @@ use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE, VOLTAGE};
 /// A generic structure names the remainder when it removes at least this
 /// share of what the stack leaves on its channel, held-out and on training — a
 /// quarter, the bar the remainder's character uses for a structure — and
-/// at least `GENERIC_LEAD` times what the best other class removes.
+/// leads every other class: it removes at least `GENERIC_LEAD` times what
+/// the other removes, or, fitted together with it on the same channel, it
+/// explains what the other does not (`overlap`).
 pub const GENERIC_MIN_PCT: f64 = 25.0;
 pub const GENERIC_LEAD: f64 = 1.5;
 
 /// The generic structure that names the remainder, if one does.
 pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
     let best = fits.first()?;
-    let other = fits
+    let leads = fits
         .iter()
         .filter(|g| g.class != best.class)
-        .map(|g| g.remainder_shrink_pct)
-        .fold(0.0f64, f64::max);
-    (best.refused.is_none()
-        && best.remainder_shrink_pct >= GENERIC_MIN_PCT
-        && best.train_shrink_pct >= GENERIC_MIN_PCT
-        && best.remainder_shrink_pct >= GENERIC_LEAD * other)
-        .then_some(best)
+        .all(|g| best.remainder_shrink_pct >= GENERIC_LEAD * g.remainder_shrink_pct || (g.channel == best.channel && overlap::leads_beyond(best, &g.class)));
+    (best.refused.is_none() && best.remainder_shrink_pct >= GENERIC_MIN_PCT && best.train_shrink_pct >= GENERIC_MIN_PCT && leads).then_some(best)
 }
 
 /// One generic structure fitted and scored.
@@ -61,6 +59,14 @@ pub struct GenericFit {
     /// Why this fit cannot name the remainder whatever its share (a gain
     /// that does not drift), if it cannot.
     pub refused: Option<String>,
+    /// For each other class fitted on the same channel, fitted together
+    /// with this one: what this one and what the other explain of the
+    /// held-out remainder's energy beyond each other, % (`overlap`).
+    pub beyond_pct: std::collections::BTreeMap<String, [f64; 2]>,
+    /// The fit's regressors on training and held out, while the classes of
+    /// a channel are compared.
+    #[serde(skip)]
+    basis: overlap::Basis,
 }
 
 /// The channel's nominal prediction (logged signal minus residual).
@@ -158,6 +164,8 @@ fn fit_grid(
     for (k, v) in params.into_iter().chain(scale(&b)) {
         g.params.insert(k.into(), v);
     }
+    let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
+    g.basis = overlap::Basis(Some((xt, xh)));
     Some(g)
 }
 
@@ -254,6 +262,7 @@ pub fn fit(
         g.params.insert("shape_delay_ms".into(), tau);
         g.params.insert("delay_ms".into(), a * tau);
     }
+    overlap::compare(train, rem_t, held, rem_h, c, &mut out);
     out.sort_by(|a, b| b.primary_shrink_pct.total_cmp(&a.primary_shrink_pct));
     out
 }
