@@ -1,15 +1,16 @@
 //! Generic structures for what no library effect explains: a pure delay,
 //! a lightly damped resonance, a gain drifting with time, a constant
-//! unmeasured force. Each is a shape with one or two parameters on a grid
-//! and a linear amplitude, fitted on the training remainder of the primary
-//! channel and scored on the held-out remainder, like the library (the
-//! drifting gain, a state of each run, is cross-validated within each part:
-//! `drift`). None is
-//! built from the channel's own measured output: the delay and the drift
-//! act on the channel's *nominal* prediction (from the motion and the
-//! load), the resonance is driven by the nominal thrust (or, on the
-//! position channel, the motor's thrust from the logged current).
+//! unmeasured force, counts lost once. Each is a shape with one or two
+//! parameters on a grid and a linear amplitude, fitted on the training
+//! remainder of the primary channel and scored on the held-out remainder,
+//! like the library (the drifting gain and a count loss, states of each
+//! run, are fitted within each part: `drift`, `count_loss`). None is built
+//! from the channel's own measured output: the delay and the drift act on
+//! the channel's *nominal* prediction (from the motion and the load), the
+//! resonance is the rod side's ringing under the motor's thrust from the
+//! logged current (`resonance`).
 
+mod count_loss;
 mod drift;
 mod overlap;
 mod resonance;
@@ -37,7 +38,11 @@ pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
         .iter()
         .filter(|g| g.class != best.class)
         .all(|g| best.remainder_shrink_pct >= GENERIC_LEAD * g.remainder_shrink_pct || (g.channel == best.channel && overlap::leads_beyond(best, &g.class)));
-    (best.refused.is_none() && best.remainder_shrink_pct >= GENERIC_MIN_PCT && best.train_shrink_pct >= GENERIC_MIN_PCT && leads).then_some(best)
+    // Counts lost once are an event of the log they happen in: the
+    // training log need not show one (it is often the healthy reference),
+    // and the held-out one carries its own evidence (`count_loss`).
+    let trained = best.train_shrink_pct >= GENERIC_MIN_PCT || best.class == "count_loss";
+    (best.refused.is_none() && best.remainder_shrink_pct >= GENERIC_MIN_PCT && trained && leads).then_some(best)
 }
 
 /// One generic structure fitted and scored.
@@ -253,6 +258,10 @@ pub fn fit(
     }
     // A gain drifting with time.
     out.extend(drift::fit(train, rem_t, held, rem_h, c, nominal_rms_h));
+    // Counts lost once: an offset of the scale − motor difference.
+    if c == POSITION {
+        out.extend(count_loss::fit(train, rem_t, held, rem_h, nominal, nominal_rms_h));
+    }
     // A delay short against the motion's time scale is identified by the
     // product of amplitude and shift (`N(t + τ) − N(t) ≈ τ N'`): the grid's
     // shift alone trades against the amplitude, so the delay reported is
