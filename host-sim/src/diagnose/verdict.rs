@@ -509,10 +509,11 @@ pub fn decide(i: &Inputs) -> Verdict {
             "No library effect, disturbance or re-fit of the rig's parameters explains most of the held-out gap".to_string()
         };
         v.headline = format!(
-            "{lead}{opening}; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; no other generic class comes within a factor {}), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
+            "{lead}{opening}; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; it leads every other generic class by a factor {} or by what it explains beyond it when fitted together), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
             match g.class.as_str() {
                 "delay" => "pure delay between the channel and the motion",
-                "resonance" => "lightly damped resonance driven by the thrust",
+                "resonance" => "lightly damped resonance between motor and rod",
+                "count_loss" => "loss of counts (one offset that no force explains)",
                 "gain_drift" if g.params.contains_key("gain_per_k") => "gain drifting with the motor temperature",
                 "gain_drift" => "gain drifting with time",
                 "constant_force" => "constant unmeasured force",
