@@ -324,3 +324,57 @@ fn resonance_truth_against_floor() {
         assert!((2.99..=10.01).contains(&(rg / fl)), "seed {s}: the resonance is {:.2}× the floor, drawn at 3–10×", rg / fl);
     }
 }
+
+/// Position-channel remainders with a floor of white noise (0.3 µm) plus
+/// `shape(t)`, the torque channel's white noise plus `torque(t)`; the
+/// nominal compliance `c` at every sample.
+fn count_case(seed: u64, shape: &dyn Fn(f64) -> f64, torque: &dyn Fn(f64) -> f64) -> Vec<GenericFit> {
+    let p = Physics::from_rig(&nominal_rig());
+    let c = p.local_compliance(0.0, p.x0);
+    let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+    let seg = |rng: &mut ChaCha8Rng| {
+        let iq = current(rng);
+        let n = iq.len();
+        let tn = torque_nominal(&iq, &p);
+        let tq: Vec<f64> = noise(rng, n, 1e-3).into_iter().enumerate().map(|(k, e)| e + torque(k as f64 * DT)).collect();
+        let pos: Vec<f64> = noise(rng, n, 3e-7).into_iter().enumerate().map(|(k, e)| e + shape(k as f64 * DT)).collect();
+        let mut s = segment(0.0, iq, &tn, tq, pos);
+        (s.rod_from_scale, s.c_loc) = (true, vec![c; n]);
+        s
+    };
+    let train = seg(&mut rng);
+    let held = seg(&mut rng);
+    diagnose_pair(train, held, &p)
+}
+
+/// Counts lost over 40 ms at `t0`: the scale − motor difference gains
+/// `lost` from then on.
+fn loss(t0: f64, lost: f64) -> impl Fn(f64) -> f64 {
+    move |t| lost * ((t - t0) / 0.04).clamp(0.0, 1.0)
+}
+
+#[test]
+fn counts_lost_once_are_named_with_their_size_and_nothing_else_is() {
+    let p = Physics::from_rig(&nominal_rig());
+    let c = p.local_compliance(0.0, p.x0);
+    // 0.03 rad at the motor, 24 µm at the rod.
+    let lost = 0.03 * p.k;
+    let fits = count_case(51, &loss(4.3, lost), &|_| 0.0);
+    let g = named(&fits).unwrap_or_else(|| panic!("nothing named: {fits:#?}"));
+    assert_eq!(g.class, "count_loss", "{fits:#?}");
+    assert!((g.params["lost_m"] / lost - 1.0).abs() <= 0.05, "lost {:.3e} m against {lost:.3e}", g.params["lost_m"]);
+    assert!((g.params["time_s"] - 4.32).abs() <= 0.05, "at {:.3} s", g.params["time_s"]);
+    let refused = |fits: &[GenericFit], why: &str| {
+        let g = fits.iter().find(|g| g.class == "count_loss").expect("count loss fitted");
+        assert!(g.refused.as_deref().is_some_and(|r| r.contains(why)), "{why}: {g:?}");
+        assert!(named(fits).is_none_or(|n| n.class != "count_loss"), "{fits:#?}");
+    };
+    // A lost motion: the rod sits on the other flank after every reversal
+    // (here every second), a step of the same size each time.
+    refused(&count_case(52, &|t| if (t as i64) % 2 == 0 { 0.0 } else { lost }, &|_| 0.0), "not single");
+    // A force step: the deflection steps, and the torque with it by
+    // (L/2π) Δx / c.
+    refused(&count_case(53, &loss(4.3, lost), &|t| p.k * loss(4.3, lost)(t) / c), "a force");
+    // A drift of the same size over the run.
+    refused(&count_case(54, &|t| lost * t / LEN_S, &|_| 0.0), "not sharp");
+}

@@ -15,6 +15,8 @@ mod drift;
 mod overlap;
 mod resonance;
 
+pub use overlap::Basis;
+
 use resonance::rod_mode;
 
 use super::effects::{Effect, MAXP};
@@ -71,7 +73,7 @@ pub struct GenericFit {
     /// The fit's regressors on training and held out, while the classes of
     /// a channel are compared.
     #[serde(skip)]
-    basis: overlap::Basis,
+    pub basis: Basis,
 }
 
 /// The channel's nominal prediction (logged signal minus residual).
@@ -170,7 +172,7 @@ fn fit_grid(
         g.params.insert(k.into(), v);
     }
     let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
-    g.basis = overlap::Basis(Some((xt, xh)));
+    g.basis = Basis(Some((xt, xh)));
     Some(g)
 }
 
