@@ -55,6 +55,10 @@ pub struct GapLogs {
     pub train: Log,
     pub held: Log,
     pub held_clean: Log,
+    /// `held_clean` with exact sensors (no current or bus noise, a 24-bit
+    /// ADC, a 1 nm scale; the encoder keeps its counts, which the control
+    /// uses): what of the floor is the nominal's modelling error, not noise.
+    pub held_clean_exact: Log,
     pub events: Vec<[f64; 3]>,
     pub factor: f64,
     pub f_motion_rms_n: f64,
@@ -150,10 +154,18 @@ pub fn force_logs(rig: &RigConfig, timing: Timing, factor: Option<f64>, seed: u6
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let (train, _, _, _) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
     let (held, events, f_rms, held_clean) = with_events(rig, 2000 + seed, timing, factor, sign, &mut rng);
+    let mut exact = rig.clone();
+    let se = &mut exact.plant.sensors;
+    se.current_noise_a = 0.0;
+    se.bus_voltage_noise_v = 0.0;
+    se.adc_bits = 24;
+    se.linear_scale_resolution_m = 1e-9;
+    let held_clean_exact = run(&exact, &UnmodelledEffects::default(), &quiet_experiment(rig, 2000 + seed), 2000 + seed).expect("exact-sensor run");
     GapLogs {
         train,
         held,
         held_clean,
+        held_clean_exact,
         events,
         factor,
         f_motion_rms_n: f_rms,
