@@ -196,7 +196,7 @@ fn diagnose_split(
     } else if split == Split::AcrossEvents {
         segments = match events::split_across_events(
             &segments,
-            events::STEP_SIGMA,
+            disturbance::THRESHOLDS[0],
             [0.0, disturbance::DETECT_WEIGHT_FLOOR],
         ) {
             Some(s) => s,

@@ -15,61 +15,56 @@ use super::{change_points, Remainder};
 use crate::diagnose::residual::Segment;
 use crate::diagnose::split::slice_segment;
 
-/// A cut keeps at least this far from every change point, s: an event's
-/// step, its filter response (±10 ms smoothing) and the drive train's
-/// ringing after it (the rod's ≈ 30 Hz mode, a few periods) stay whole in
-/// one piece.
+/// A cut sits where the step statistic stays lowest over ± this, s: an
+/// event's step, its filter response (±10 ms smoothing) and the drive
+/// train's ringing after it (the rod's ≈ 30 Hz mode, a few periods) stay
+/// whole in one piece.
 pub const CUT_GUARD_S: f64 = 0.1;
-/// Pieces are at least this long, s: each holds an event with enough
-/// quiet either side of it for its level (the disturbance's blocks are
-/// 2 × 21 ms).
-pub const MIN_PIECE_S: f64 = 0.8;
-/// The split needs this many pieces holding change points on each side;
+/// Pieces are about this long, s (each cut searched within
+/// ± `CUT_SEARCH_S` of it): long against an event and its quiet either
+/// side (the disturbance's level blocks are 2 × 21 ms), short enough that
+/// a log of a few seconds gives each side several pieces.
+pub const PIECE_S: f64 = 1.0;
+pub const CUT_SEARCH_S: f64 = 0.4;
+/// The split needs this many pieces holding a change point on each side;
 /// with fewer events the default split in time is used.
-pub const MIN_EVENT_PIECES: usize = 2;
+pub const MIN_EVENT_PIECES: usize = 1;
 
-/// The segments cut between the change points found at `k` robust sigmas
-/// (`change_points::detect_floor` with `floor`, on the nominal residual),
-/// alternate pieces held out. `None` when the log carries too few events
-/// to give each side `MIN_EVENT_PIECES` pieces with change points.
+/// The segments cut at the quietest points of the residual's step
+/// statistic about every `PIECE_S` (`change_points::step_z` with `floor`,
+/// on the nominal residual), alternate pieces held out. `None` when the
+/// log carries too few events (step statistic ≥ `k` robust sigmas) to give
+/// each side `MIN_EVENT_PIECES` pieces with one.
 pub fn split_across_events(segs: &[Segment], k: f64, floor: [f64; 2]) -> Option<Vec<Segment>> {
     let refs: Vec<&Segment> = segs.iter().collect();
     let rem: Remainder = segs.iter().map(|s| std::array::from_fn(|c| s.r[c].clone())).collect();
-    let cps = change_points::detect_floor(&refs, &rem, k, floor);
+    let z = change_points::step_z(&refs, &rem, floor);
     let mut out = Vec::new();
     let mut with_events = [0usize; 2];
     let mut side = 0usize;
-    for (s, cp) in segs.iter().zip(&cps) {
+    for (s, z) in segs.iter().zip(&z) {
         let n = s.len();
         if n == 0 {
             continue;
         }
-        let guard = (CUT_GUARD_S / s.dt).round() as usize;
-        let min_len = (MIN_PIECE_S / s.dt).round() as usize;
-        // Candidate cuts: midway between neighbouring change points (and
-        // the segment's ends) that lie at least two guards apart.
-        let mut bounds = vec![0usize];
-        bounds.extend(cp.iter().copied());
-        bounds.push(n);
-        let cand: Vec<usize> = bounds
-            .windows(2)
-            .filter(|w| w[1] - w[0] >= 2 * guard)
-            .map(|w| (w[0] + w[1]) / 2)
-            .filter(|m| *m > 0 && *m < n)
-            .collect();
-        // Greedy from the start: a cut only where the piece before it and
-        // what is left after it are both long enough.
+        let steps = |x: f64| (x / s.dt).round() as usize;
+        let (guard, piece, search) = (steps(CUT_GUARD_S), steps(PIECE_S), steps(CUT_SEARCH_S));
+        // The largest statistic within the guard of each sample.
+        let near = |j: usize| z[j.saturating_sub(guard)..(j + guard + 1).min(n)].iter().fold(0.0f64, |m, x| m.max(*x));
         let mut cuts = vec![0usize];
-        for m in cand {
-            let last = *cuts.last().unwrap_or(&0);
-            if m - last >= min_len && n - m >= min_len {
-                cuts.push(m);
+        loop {
+            let a = *cuts.last().unwrap_or(&0);
+            let (lo, hi) = (a + piece - search, (a + piece + search).min(n.saturating_sub(piece - search)));
+            if lo >= hi {
+                break;
             }
+            let j = (lo..hi).min_by(|x, y| near(*x).total_cmp(&near(*y))).unwrap_or(lo);
+            cuts.push(j);
         }
         cuts.push(n);
         for w in cuts.windows(2) {
             let (a, b) = (w[0], w[1]);
-            if cp.iter().any(|i| (a..b).contains(i)) {
+            if z[a..b].iter().any(|x| *x >= k) {
                 with_events[side] += 1;
             }
             out.push(slice_segment(s, a, b, side == 1));
