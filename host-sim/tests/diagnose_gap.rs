@@ -64,6 +64,12 @@ struct Outcome {
     /// sensor noise: 1 − (the floor with exact sensors / the floor)², %.
     floor_primary: Option<f64>,
     floor_noise_share_pct: Option<f64>,
+    /// How much of the floor a fit on a clean reference removes: the tool
+    /// on the training and held-out experiments without the events, its
+    /// library stack and its re-fit of the rig's parameters, held-out
+    /// primary-channel shrink (of that diagnosis's primary channel), %.
+    floor_stack_pct: Option<f64>,
+    floor_refit_pct: Option<f64>,
     /// The primary-channel shrink of the gap above the floor: the RMS
     /// shrink of `sqrt(gap² − floor²)`, the part of the gap the events add
     /// (force and floor are independent, so their energies add), %.
@@ -165,6 +171,11 @@ fn run_case(spec: Spec) -> Outcome {
             let after = gn * (1.0 - s.verdict.explained_pct / 100.0);
             let above = |x: f64| (x * x - fl * fl).max(0.0).sqrt();
             o.above_floor_shrink_pct = (gn > fl).then(|| shrink(above(gn), above(after)));
+        }
+        let tilt = Physics::from_rig(&nominal_rig()).tilt_deg;
+        if let Ok(c) = diagnose_with(&g.train_clean, Some(&g.held_clean), None, physics(&nominal_rig()), tilt, &Options::default()) {
+            o.floor_stack_pct = Some(c.summary.gap_shrink_stack_pct);
+            o.floor_refit_pct = c.summary.refit.as_ref().map(|r| r.primary_shrink_pct);
         }
     };
     let d = match spec {
@@ -300,6 +311,13 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
     let mut noise: Vec<f64> = force.iter().filter_map(|o| o.floor_noise_share_pct).collect();
     noise.sort_by(f64::total_cmp);
     let noise_range = format!("{:.0}–{:.0} % (median {:.0} %)", noise.first().copied().unwrap_or(f64::NAN), noise.last().copied().unwrap_or(f64::NAN), noise.get(noise.len() / 2).copied().unwrap_or(f64::NAN));
+    let range = |v: Vec<f64>| {
+        let mut v = v;
+        v.sort_by(f64::total_cmp);
+        format!("{:.0}–{:.0} %", v.first().copied().unwrap_or(f64::NAN), v.last().copied().unwrap_or(f64::NAN))
+    };
+    let floor_stack = range(force.iter().filter_map(|o| o.floor_stack_pct).collect());
+    let floor_refit = range(force.iter().filter_map(|o| o.floor_refit_pct).collect());
     let neg_fit = force.iter().filter(|o| o.train_fit_torque_pct.is_some_and(|f| f < 0.0)).count();
     let wr = fam("wrong_rig");
     let wr_ok = wr.iter().filter(|o| o.verdict == "rig_mismatch" && o.wrong_param_refitted == Some(true)).count();
@@ -327,6 +345,8 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "force_misses_with_ceiling_below_70": shr_capped,
         "force_above_floor_shrink_ge_70_pct": pct(shr_above, n_f),
         "force_floor_noise_share": noise_range,
+        "force_floor_removed_by_clean_stack": floor_stack,
+        "force_floor_removed_by_clean_refit": floor_refit,
         "force_cases_training_fit_below_zero": neg_fit,
         "wrong_rig_cases": wr.len(),
         "wrong_rig_verdict_rig_mismatch_with_param_pct": pct(wr_ok, wr.len()),
@@ -340,7 +360,7 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "wall_s": wall_s,
         "outcomes": out,
     });
-    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f} ({shr_of_reachable}/{shr_ceiling} of those whose ceiling — the same run without the events — is ≥ 70 %; {shr_capped} misses have a ceiling under 70 %), of the gap above the floor ≥ 70 % {shr_above}/{n_f}, sensor noise's share of the floor's energy {noise_range}; training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
+    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f} ({shr_of_reachable}/{shr_ceiling} of those whose ceiling — the same run without the events — is ≥ 70 %; {shr_capped} misses have a ceiling under 70 %), of the gap above the floor ≥ 70 % {shr_above}/{n_f}, sensor noise's share of the floor's energy {noise_range}, floor removed by a library stack fitted on a clean reference {floor_stack}, by a re-fit of the rig's parameters {floor_refit}; training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
     let _ = writeln!(rep, "| case | seed | verdict | explained % (ceiling; above floor; floor noise %) | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
     let f1 = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.1}"));
     for o in out {

@@ -59,6 +59,10 @@ pub struct GapLogs {
     /// ADC, a 1 nm scale; the encoder keeps its counts, which the control
     /// uses): what of the floor is the nominal's modelling error, not noise.
     pub held_clean_exact: Log,
+    /// The training experiment without the events: a clean reference of
+    /// the same rig, to measure how much of the floor a fit on a
+    /// reference removes.
+    pub train_clean: Log,
     pub events: Vec<[f64; 3]>,
     pub factor: f64,
     pub f_motion_rms_n: f64,
@@ -152,7 +156,7 @@ pub fn force_logs(rig: &RigConfig, timing: Timing, factor: Option<f64>, seed: u6
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x6a9);
     let factor = factor.unwrap_or_else(|| (rng.random_range(0.2f64.ln()..5f64.ln())).exp());
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    let (train, _, _, _) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
+    let (train, _, _, train_clean) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
     let (held, events, f_rms, held_clean) = with_events(rig, 2000 + seed, timing, factor, sign, &mut rng);
     let mut exact = rig.clone();
     let se = &mut exact.plant.sensors;
@@ -166,6 +170,7 @@ pub fn force_logs(rig: &RigConfig, timing: Timing, factor: Option<f64>, seed: u6
         held,
         held_clean,
         held_clean_exact,
+        train_clean,
         events,
         factor,
         f_motion_rms_n: f_rms,
