@@ -288,10 +288,10 @@ impl NativeDrive {
     /// stored with the parameters, run; verified by CRC). A refusal names
     /// the part.
     fn upload_observer(&mut self, path: &str) -> PyResult<String> {
-        let w = tool::observer::read_model(std::path::Path::new(path))
+        let (w, source) = tool::observer::read_model_file(std::path::Path::new(path))
             .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({ "field": path })))?;
         let c = self.c()?;
-        let s = Python::with_gil(|py| py.allow_threads(|| tool::observer::upload(c, &w)))
+        let s = Python::with_gil(|py| py.allow_threads(|| tool::observer::upload(c, &w, source)))
             .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({})))?;
         Ok(observer_json(&s))
     }
