@@ -10,7 +10,9 @@ mod drive_support;
 
 use drive_support::Drive;
 use host_sim::tool::{self, observer as obs};
+use clap::Parser;
 use host_sim::trainer::dataset::{Dataset, DatasetLimits, ForceSource as DataForce};
+use host_sim::trainer::TrainArgs;
 use servo_core::observer::block::{self, ForceSource, Part, STRUCTURE_HASH, STRUCTURE_HASH_ESTIMATE};
 use servo_core::observer::model::{HIDDEN, INPUTS, MODEL};
 use servo_core::params::record;
@@ -100,4 +102,20 @@ fn a_dataset_names_its_force_source_by_its_force_column_and_refuses_both() {
     assert_eq!(Dataset::load(&again, &lim).unwrap().force_source, DataForce::Estimate);
     let e = format!("{:#}", Dataset::load(&write("both.csv", "load_force_n,load_force_estimate_n"), &lim).unwrap_err());
     assert!(e.contains("both") && e.contains("line 1"), "{e}");
+    // Estimate-trained weights are uploaded, never compiled in as the
+    // image's (load-cell) model: refused before any training.
+    let out = dir.path().join("out");
+    let core = dir.path().join("model.rs");
+    let est = dir.path().join("est.csv");
+    let argv = ["train", "--data", est.to_str().unwrap(), "--out", out.to_str().unwrap(), "--hidden", "8", "--emit-core", core.to_str().unwrap()];
+    let cli = TrainCli::try_parse_from(argv).unwrap();
+    let e = format!("{:#}", host_sim::trainer::run_cli(&cli.a).unwrap_err());
+    assert!(e.contains("--emit-core") && e.contains("load-cell model"), "{e}");
+    assert!(!core.exists() && !out.exists());
+}
+
+#[derive(Parser)]
+struct TrainCli {
+    #[command(flatten)]
+    a: TrainArgs,
 }
