@@ -5,7 +5,7 @@ use super::Controller;
 use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
-use crate::protection::{FaultSet, TorqueWatchVerdict};
+use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
@@ -242,13 +242,19 @@ impl Controller {
             self.torque_watch.disarm();
             return;
         }
-        let may_settle = self.mode == Mode::Running && !self.brake_opening();
-        let v = self.speed_rad_s() * self.params.metres_per_rad();
-        let e = self.position_command_m - x;
-        let dt = self.derived.position_period_s;
-        let moving = self.move_in_progress();
-        let brake_closed = self.mode == Mode::Preloading;
-        match self.torque_watch.update(&self.params, e, self.current_reference.q, v, brake_closed, may_settle, moving, dt) {
+        let look = TorqueLook {
+            following_error_m: self.position_command_m - x,
+            position_m: x,
+            q_current_reference_a: self.current_reference.q,
+            preload_current_a: self.hold_current_q_a,
+            stated_load_current_a: super::expected_load_current_q_a(&self.params),
+            speed_m_s: self.speed_rad_s() * self.params.metres_per_rad(),
+            brake_closed: self.mode == Mode::Preloading,
+            may_settle: self.mode == Mode::Running && !self.brake_opening(),
+            moving: self.move_in_progress(),
+            dt_s: self.derived.position_period_s,
+        };
+        match self.torque_watch.update(&self.params, look) {
             TorqueWatchVerdict::Watching => {}
             TorqueWatchVerdict::Inconsistent => self.raise(FaultSet::WRONG_DIRECTION),
             // Only a start-up waits on the settle; a user's own enable goes on.

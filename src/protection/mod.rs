@@ -12,4 +12,4 @@ pub use faults::FaultSet;
 pub use limits::{clamp_to_stroke, LimitFlags};
 pub use open_phase::OpenPhaseMonitor;
 pub use thermal::ThermalModel;
-pub use torque_watch::{TorqueWatch, TorqueWatchVerdict};
+pub use torque_watch::{TorqueLook, TorqueWatch, TorqueWatchVerdict};
