@@ -5,7 +5,7 @@ use super::Controller;
 use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
-use crate::protection::FaultSet;
+use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
@@ -234,6 +234,37 @@ impl Controller {
         present
     }
 
+    /// From enable until the loops first hold the rod still: the motor side
+    /// must not leave its command against the torque asked of it.
+    #[inline(never)]
+    fn watch_torque(&mut self, x: f32) {
+        if !matches!(self.mode, Mode::Running | Mode::Preloading) {
+            self.torque_watch.disarm();
+            return;
+        }
+        let look = TorqueLook {
+            following_error_m: self.position_command_m - x,
+            position_m: x,
+            q_current_reference_a: self.current_reference.q,
+            preload_current_a: self.hold_current_q_a,
+            stated_load_current_a: super::expected_load_current_q_a(&self.params),
+            speed_m_s: self.speed_rad_s() * self.params.metres_per_rad(),
+            brake_closed: self.mode == Mode::Preloading,
+            may_settle: self.mode == Mode::Running && !self.brake_opening(),
+            moving: self.move_in_progress(),
+            dt_s: self.derived.position_period_s,
+        };
+        match self.torque_watch.update(&self.params, look) {
+            TorqueWatchVerdict::Watching => {}
+            TorqueWatchVerdict::Inconsistent => self.raise(FaultSet::WRONG_DIRECTION),
+            // Only a start-up waits on the settle; a user's own enable goes on.
+            TorqueWatchVerdict::NeverSettled if self.start_up_sequence => self.raise(FaultSet::LIFECYCLE_TIMEOUT),
+            TorqueWatchVerdict::NeverSettled => {}
+            // A start-up waiting to home goes on.
+            TorqueWatchVerdict::Settled => self.next_start_up_step(),
+        }
+    }
+
     /// The stroke means something once homed; homing itself runs to the
     /// stop and backs off from it, beyond the stroke, so the limits act from
     /// the end of homing on.
@@ -281,6 +312,9 @@ impl Controller {
             && self.emf_watch.update(&self.params, self.voltage_dq, self.current_dq, self.derived.position_period_s)
         {
             self.raise(FaultSet::ENCODER_LOST);
+        }
+        if self.torque_watch.watching() {
+            self.watch_torque(x);
         }
         // The stop starts from the measured position: straying from it means
         // the load is winning. The brake must take it before the end stop.

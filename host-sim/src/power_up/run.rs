@@ -120,6 +120,9 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
     for _ in 0..seconds(&cl, IDLE_BEFORE_START_S) {
         step(&mut cl);
     }
+    if let Some(error_rad) = case.failure.offset_error_rad() {
+        store_wrong_offset(&mut cl, f64::from(rig.plant.motor.pole_pairs), error_rad).map_err(|e| anyhow!("{}: {e}", case.name))?;
+    }
     let nominal_bus = rig.plant.inverter.nominal_bus_voltage_v;
     let x0 = cl.plant.state().x_rod_m;
     let t_start = cl.time_s();
@@ -158,8 +161,10 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
             fault_at = Some((cl.time_s(), x));
         }
         // A fall: before homing (which moves the rod down on purpose), or
-        // after a fault.
+        // after a fault; for a commutation error no check saw, from the
+        // start (the fall before the verdict counts).
         match fault_at {
+            _ if case.failure.offset_error_rad().is_some() => drop = drop.max(x0 - x),
             Some((_, xf)) => drop = drop.max(xf - x),
             None if !homing_seen => drop = drop.max(x0 - x),
             None => {}
@@ -200,6 +205,20 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
     result.verdict = judge(&result, case.failure.expected_fault(), c.faults());
     result.passed = result.verdict == "ok";
     Ok(result)
+}
+
+/// The drive is told its commutation is known, with an offset `error_rad`
+/// (electrical) off the true one: the offset the drive would need is found
+/// from the rotor's true angle against the angle the drive computes now.
+fn store_wrong_offset(cl: &mut ClosedLoop, pole_pairs: f64, error_rad: f64) -> Result<()> {
+    let truth = pole_pairs * cl.sampled_state().theta_m_rad;
+    let believed = f64::from(cl.controller.electrical_angle_rad());
+    let mut p = *cl.controller.params();
+    let right = f64::from(p.encoder.electrical_offset_rad) + truth - believed;
+    p.encoder.electrical_offset_rad = (right + error_rad + PI).rem_euclid(2.0 * PI) as f32 - PI as f32;
+    p.startup.commutation_known = true;
+    let p = servo_core::params::ValidatedParams::new(p).map_err(|e| anyhow!("wrong offset refused: {e:?}"))?;
+    cl.controller.apply_params(&p).map_err(|e| anyhow!("wrong offset not applied: {e:?}"))
 }
 
 /// `Disable` (the brake closes under the loops), then `Enable`: the largest
