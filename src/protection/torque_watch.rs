@@ -43,8 +43,15 @@
 //! whose reversed preload twists the disc by several counts, is caught
 //! before the brake ever opens.
 //!
-//! The reaction cannot rely on the angle: bridge off, the winding shorted
-//! through the brake's engage time, the brake closed.
+//! With the brake open the verdict also says which of two errors it saw.
+//! The speed away grows at the load's own rate over the inertia when the
+//! torque is missing (an error near a quarter turn), and at the load's plus
+//! the push's when it is reversed (near half a turn): the growth of the
+//! verdict's look against the midpoint of the two tells them apart
+//! ([`TorqueWatchVerdict::Reversed`]). The controller reacts to a reversed
+//! torque by holding on the half-turned angle while the brake closes, watched
+//! again ([`TorqueWatch::arm_turned`]), and to anything else by switching
+//! the bridge off with the winding shorted through the brake's engage time.
 //!
 //! Rig-independent: the verdict is a sign, a distance and a trend, not a
 //! load or a gain; the time it allows follows the loop's own gains and the
@@ -59,6 +66,10 @@ pub enum TorqueWatchVerdict {
     Watching,
     /// The rotor left the command against the torque asked for it.
     Inconsistent,
+    /// As `Inconsistent`, with the brake open, and the rotor sped away about
+    /// as fast as the load and the push together drive it: the torque acts
+    /// against q (an angle error near half a turn).
+    Reversed,
     /// The position loop held the rod still at its command: the watch ends.
     Settled,
     /// Watched, the rod not moving on purpose, for
@@ -108,11 +119,34 @@ pub struct TorqueWatch {
     watching: bool,
     /// `start_m` is fixed: the rotor was found at rest on the brake.
     resting: bool,
+    /// The drive holds on the angle turned by half a turn after a verdict
+    /// (the controller's reaction); a second verdict switches it off.
+    turned: bool,
+    /// The electrical offset before the turn, given back bit for bit.
+    offset_before_rad: f32,
 }
 
 impl TorqueWatch {
     pub const fn new() -> Self {
-        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false }
+        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false, turned: false, offset_before_rad: 0.0 }
+    }
+
+    /// Watches again, the drive now holding on the half-turned angle;
+    /// `offset_before_rad` is the offset to give back.
+    pub fn arm_turned(&mut self, offset_before_rad: f32) {
+        *self = Self { watching: true, turned: true, offset_before_rad, ..Self::new() };
+    }
+
+    pub fn turned(&self) -> bool {
+        self.turned
+    }
+
+    /// The hold on the turned angle is over (the bridge went off): the
+    /// offset to put back.
+    pub fn end_turn(&mut self) -> f32 {
+        self.watching = false;
+        self.turned = false;
+        self.offset_before_rad
     }
 
     /// Starts watching (the bridge has just been enabled).
@@ -147,9 +181,13 @@ impl TorqueWatch {
         // A rotor still settling onto a brake that just closed (an enable
         // right after a fault or a disable) moves along the load by itself:
         // the twist is measured from where it comes to rest.
+        // A rotor already moving towards the push is the preload untwisting
+        // the disc (a step of hold current rings it on the disc's
+        // compliance): the twist counts from there, and the ringing back
+        // never passes it.
         if look.brake_closed && !self.resting {
             self.start_m = look.position_m;
-            self.resting = look.speed_m_s.abs() < still_m_s;
+            self.resting = look.speed_m_s.abs() < still_m_s || look.speed_m_s * look.preload_current_a > 0.0;
         }
         if look.moving {
             self.settled_s = 0.0;
@@ -173,16 +211,32 @@ impl TorqueWatch {
             self.growing_s += look.dt_s;
             let push_a = if e > 0.0 { look.q_current_reference_a } else { -look.q_current_reference_a };
             let beyond_load = push_a - look.stated_load_current_a.abs() > 0.15 * p.thermal.continuous_current_a;
-            let allowed_s = if beyond_load { 1.5 * look.dt_s } else { Self::response_s(p) };
+            // On the half-turned angle the motion the wrong angle built up
+            // (the rod's momentum through the drive train's compliance) may
+            // carry on for a while under a working torque: the loop's own
+            // response time, no shortcut.
+            let allowed_s = if beyond_load && !self.turned { 1.5 * look.dt_s } else { Self::response_s(p) };
             if self.growing_s > allowed_s {
                 self.watching = false;
-                return TorqueWatchVerdict::Inconsistent;
+                // How fast the speed away grew this look, against what the
+                // stated load alone gives (no torque) and what it gives with
+                // the push added to it (the torque reversed): the midpoint
+                // tells the two apart.
+                let growth_m_s2 = (away - self.away_m_s) / look.dt_s;
+                let per_amp_m_s2 = p.torque_constant_n_m_a() / p.reflected_inertia_kg_m2() * p.metres_per_rad();
+                let midpoint_m_s2 = per_amp_m_s2 * (look.stated_load_current_a.abs() + 0.5 * push_a);
+                return if growth_m_s2 > midpoint_m_s2 { TorqueWatchVerdict::Reversed } else { TorqueWatchVerdict::Inconsistent };
             }
         } else {
             self.growing_s = 0.0;
         }
         self.away_m_s = away;
-        if look.may_settle && e.abs() <= 0.5 * open_travel && look.speed_m_s.abs() < still_m_s {
+        // Held within half the travel for the whole settle time: the rod
+        // stayed in a band of one travel, so its mean speed is below
+        // travel / settle time. The speed estimate itself is not asked: a
+        // rotor dithering by a count in a stiff friction band reads count
+        // steps as speed spikes while the rod stands still.
+        if look.may_settle && e.abs() <= 0.5 * open_travel {
             self.settled_s += look.dt_s;
         } else {
             self.settled_s = 0.0;
