@@ -119,6 +119,8 @@ pub struct TorqueWatch {
     watching: bool,
     /// `start_m` is fixed: the rotor was found at rest on the brake.
     resting: bool,
+    /// The rotor moved towards the preload's push on the closed brake.
+    pushed_back: bool,
     /// The drive holds on the angle turned by half a turn after a verdict
     /// (the controller's reaction); a second verdict switches it off.
     turned: bool,
@@ -128,7 +130,7 @@ pub struct TorqueWatch {
 
 impl TorqueWatch {
     pub const fn new() -> Self {
-        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false, turned: false, offset_before_rad: 0.0 }
+        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false, pushed_back: false, turned: false, offset_before_rad: 0.0 }
     }
 
     /// Watches again, the drive now holding on the half-turned angle;
@@ -181,13 +183,17 @@ impl TorqueWatch {
         // A rotor still settling onto a brake that just closed (an enable
         // right after a fault or a disable) moves along the load by itself:
         // the twist is measured from where it comes to rest.
-        // A rotor already moving towards the push is the preload untwisting
-        // the disc (a step of hold current rings it on the disc's
-        // compliance): the twist counts from there, and the ringing back
-        // never passes it.
         if look.brake_closed && !self.resting {
             self.start_m = look.position_m;
-            self.resting = look.speed_m_s.abs() < still_m_s || look.speed_m_s * look.preload_current_a > 0.0;
+            self.resting = look.speed_m_s.abs() < still_m_s;
+        }
+        // A rotor seen moving towards the push has shown the torque's sign:
+        // the preload untwisting the disc, or catching a load that was not
+        // yet on the brake. The ringing that follows (a step of hold
+        // current rings the rotor on the disc's compliance) swings it back
+        // along the load and proves nothing.
+        if look.brake_closed && look.speed_m_s * look.preload_current_a.signum() > still_m_s {
+            self.pushed_back = true;
         }
         if look.moving {
             self.settled_s = 0.0;
@@ -203,7 +209,7 @@ impl TorqueWatch {
         if look.brake_closed {
             let two_counts = 2.0 * p.metres_per_rad() * (2.0 * core::f32::consts::PI) / p.encoder.counts_per_rev as f32;
             let moved = look.position_m - self.start_m;
-            if self.resting && moved * look.preload_current_a < 0.0 && moved.abs() > two_counts {
+            if self.resting && !self.pushed_back && moved * look.preload_current_a < 0.0 && moved.abs() > two_counts {
                 self.watching = false;
                 return TorqueWatchVerdict::Inconsistent;
             }
