@@ -36,12 +36,14 @@
 //! wrong way twists it further along the load. A rotor still settling onto
 //! a brake that has just closed (an enable right after a fault or a
 //! disable) moves along the load by itself, so the twist counts from where
-//! it first rests. There the verdict is the
-//! rotor's motion since the watch began against the preload's push (the
-//! hold current's sign, not the loops' answer to the reading), beyond the
-//! encoder's resolution (two counts), with no trend asked: a heavy load,
-//! whose reversed preload twists the disc by several counts, is caught
-//! before the brake ever opens.
+//! it first rests. There the verdict is the rotor's motion since it rested
+//! against the preload's push (the hold current's sign, not the loops'
+//! answer to the reading), beyond the travel bound, with no trend asked;
+//! a rotor once seen moving towards the push has shown the torque's sign
+//! and is not judged there again. The bound is the travel, not the
+//! encoder's resolution: a brake that does not hold yet leaves the loops to
+//! catch the load with a small sag, and a reversed preload's twist (a few
+//! counts) is caught anyway once the brake opens.
 //!
 //! With the brake open the verdict also says which of two errors it saw.
 //! The speed away grows at the load's own rate over the inertia when the
@@ -207,9 +209,11 @@ impl TorqueWatch {
         let away = if e > 0.0 { -look.speed_m_s } else { look.speed_m_s };
         let open_travel = p.brake.torque_watch_travel_m;
         if look.brake_closed {
-            let two_counts = 2.0 * p.metres_per_rad() * (2.0 * core::f32::consts::PI) / p.encoder.counts_per_rev as f32;
+            // The travel bound, not the encoder's resolution: a brake that
+            // does not yet hold (still closing, or worn) leaves the loops to
+            // catch the load with a small sag, as an enable does.
             let moved = look.position_m - self.start_m;
-            if self.resting && !self.pushed_back && moved * look.preload_current_a < 0.0 && moved.abs() > two_counts {
+            if self.resting && !self.pushed_back && moved * look.preload_current_a < 0.0 && moved.abs() > open_travel {
                 self.watching = false;
                 return TorqueWatchVerdict::Inconsistent;
             }
