@@ -178,3 +178,23 @@ fn a_parameter_file_with_a_typo_is_refused_naming_the_path_and_the_likely_one() 
     write(&p, "[control.speed_pi]\nkp = 0.3\n");
     assert_eq!(read_leaves(&p).unwrap().len(), 1);
 }
+
+#[test]
+fn a_simulated_drive_started_outside_its_stroke_or_rates_is_refused_not_a_panic() {
+    for (args, says) in [
+        (&["--initial-position-m", "10"][..], "--initial-position-m 10: outside the rig's stroke"),
+        (&["--initial-position-m", "250"], "millimetres? positions are in metres: 0.25 m"),
+        (&["--stream-period-s", "0.5"], "--stream-period-s 0.5: the drive interpolates streams at"),
+        (&["--stream-period-s", "1e-6"], "--stream-period-s 0.000001"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["drive", "serve", "--listen", "127.0.0.1:0", "--pace", "fast", "--commissioned"])
+            .args(args)
+            .env_remove("RUST_BACKTRACE")
+            .output()
+            .unwrap();
+        let text = said(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
+}
