@@ -137,7 +137,8 @@ fn ctrl_c_mid_stream_ends_it_with_a_stop_and_says_so() {
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(1200));
-    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    // The shell's own `kill`: no procps needed.
+    assert!(Command::new("sh").args(["-c", &format!("kill -INT {}", child.id())]).status().unwrap().success());
     let o = child.wait_with_output().unwrap();
     let text = said(&o);
     assert_eq!(o.status.code(), Some(1), "{text}");
@@ -151,4 +152,49 @@ fn ctrl_c_mid_stream_ends_it_with_a_stop_and_says_so() {
     assert_eq!(st.faults, 0, "faults latched after Ctrl-C: {:?}", servo_core::FaultSet::from_bits_retain(st.faults));
     assert_eq!(st.mode, servo_core::Mode::Running);
     assert!(st.speed_rad_s.abs() < 1.0, "still moving: {} rad/s", st.speed_rad_s);
+}
+
+#[test]
+fn a_parameter_file_with_a_typo_is_refused_naming_the_path_and_the_likely_one() {
+    use host_sim::tool::config_file::read_leaves;
+    let d = dir("toml");
+    let err = |name: &str, text: &str| {
+        let p = d.join(name);
+        write(&p, text);
+        format!("{:#}", read_leaves(&p).unwrap_err())
+    };
+    let e = err("typo.toml", "[control.speed_pi]\nkpp = 0.3\n");
+    assert!(e.contains("typo.toml: `control.speed_pi.kpp`: no such parameter: did you mean `control.speed_pi.kp`?") && e.contains("nothing was sent"), "{e}");
+    let e = err("table.toml", "[speed_pi]\nkp = 0.3\n");
+    assert!(e.contains("under `[control]`: `control.speed_pi.kp`"), "{e}");
+    let e = err("enum.toml", "[control.homing]\nmethod = \"hardstop\"\n");
+    assert!(e.contains("`control.homing.method`: \"hardstop\" is not one of \"HardStop\", \"Switch\""), "{e}");
+    let e = err("type.toml", "[control.speed_pi]\nkp = \"abc\"\n");
+    assert!(e.contains("`control.speed_pi.kp`: \"abc\" is not a number"), "{e}");
+    let e = err("empty.toml", "# nothing\n");
+    assert!(e.contains("empty.toml: no parameters"), "{e}");
+    // A sane file still reads.
+    let p = d.join("ok.toml");
+    write(&p, "[control.speed_pi]\nkp = 0.3\n");
+    assert_eq!(read_leaves(&p).unwrap().len(), 1);
+}
+
+#[test]
+fn a_simulated_drive_started_outside_its_stroke_or_rates_is_refused_not_a_panic() {
+    for (args, says) in [
+        (&["--initial-position-m", "10"][..], "--initial-position-m 10: outside the rig's stroke"),
+        (&["--initial-position-m", "250"], "millimetres? positions are in metres: 0.25 m"),
+        (&["--stream-period-s", "0.5"], "--stream-period-s 0.5: the drive interpolates streams at"),
+        (&["--stream-period-s", "1e-6"], "--stream-period-s 0.000001"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["drive", "serve", "--listen", "127.0.0.1:0", "--pace", "fast", "--commissioned"])
+            .args(args)
+            .env_remove("RUST_BACKTRACE")
+            .output()
+            .unwrap();
+        let text = said(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
 }
