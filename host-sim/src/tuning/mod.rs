@@ -16,7 +16,7 @@ pub mod simcheck;
 
 use crate::config::RigConfig;
 use crate::diagnose::residual::Physics;
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use design::{DesignPlant, LoopDesign, RodMode};
 use identify::{Capture, ElecId, MechId, MechOptions};
 use model::{Gains, StepKind};
@@ -64,14 +64,17 @@ impl Identified {
 /// it. Returns the captures (speed steps, current step).
 pub fn simulate_identification_captures(rig: &RigConfig, seed: u64) -> Result<(Vec<Capture>, Capture)> {
     let mut cl = simcheck::holding(rig, rig.control, X0_M, seed)?;
-    // The current step first, from a standing rotor (R comes from the
-    // standstill before it).
-    let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Current, 8.0, 0.02))?;
+    // The winding from a d-axis current step: no torque, so the rotor
+    // stands and no back-EMF enters the voltage. A q step accelerates the
+    // rotor, and R then trades against ψ unless a hold current at
+    // standstill gives it (none on a lightly loaded unit: R came out 24 %
+    // high holding 6 kg).
+    let c = simcheck::run_test(&mut cl, &TestSpec::current_step_d(8.0, 0.02)).context("identification, d-current step 8 A")?;
     let mut cur = c.capture;
-    cur.source = "simulated q-current step 8 A".into();
+    cur.source = "simulated d-current step 8 A".into();
     let mut speed = Vec::new();
     for (i, a) in [20.0, -20.0, 50.0, -50.0].into_iter().enumerate() {
-        let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Speed, a, 0.25))?;
+        let c = simcheck::run_test(&mut cl, &TestSpec::step(Loop::Speed, a, 0.25)).with_context(|| format!("identification, speed step {a:+} rad/s"))?;
         let mut cap = c.capture;
         cap.source = format!("simulated speed step {a:+} rad/s #{i}");
         speed.push(cap);
