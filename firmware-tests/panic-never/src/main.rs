@@ -165,8 +165,8 @@ mod protocol {
             let b = unsafe { read_volatile(addr_of!(BYTES[i])) };
             // The parser and the whole server: any bytes, any frame, any
             // request (parameters by index through the leaf table, record,
-            // stream, capture, test). Linked since the drive no longer
-            // uses miniconf's derived `TreeAny` (its child match ends in
+            // stream, capture, test). Linked because the drive does not
+            // use miniconf's derived `TreeAny` (its child match ends in
             // `unreachable!()`); the 10⁶-frame property test covers the
             // behaviour, host-sim/tests/protocol_fuzz.rs.
             let reply = srv.receive(reader, b, &mut Drive(c), &mut Store);

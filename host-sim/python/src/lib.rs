@@ -368,7 +368,11 @@ impl NativeDrive {
         let c = self.c()?;
         let p = tool::fetch_params(c, &ControlParams::default()).map_err(link_err)?;
         let period = c.info.as_ref().map_or(0.0, |i| i.stream_period_s);
-        let problems = match stream::check_rows("array", &rows, &StreamLimits::of(&p, period)) {
+        // The first point against where the drive's reference rests: a stream
+        // starts from rest there.
+        let mut limits = StreamLimits::of(&p, period);
+        limits.start_reference_m = Some(stream::reference_position(c).map_err(link_err)?);
+        let problems = match stream::check_rows("array", &rows, &limits) {
             Ok(()) => vec![],
             Err(e) => format!("{e:#}")
                 .lines()

@@ -27,12 +27,29 @@ def test_stream_tracks_and_ends_where_the_setpoints_end(running):
 
 def test_refusals_are_reported_by_row(running):
     # The first point is 5 mm from the rod: a jump the drive refuses, row by row,
-    # until the setpoints come within reach... they never do here.
+    # until the setpoints come within reach... they never do here. Sent without
+    # the check, which would refuse it first (below).
     t, x, v = sine(x0=0.255, dur=0.05)
-    r = running.stream(t, x, v, paced=False)
+    r = running.stream(t, x, v, paced=False, check=False)
     assert r.refusals and r.refusals[0][0] == 0
     assert all(isinstance(row, int) for row, _ in r.refusals)
     assert "jump" in r.refusals[0][1]
+
+
+def test_a_start_away_from_the_rod_or_moving_is_refused_before_sending(running):
+    # The drive starts a stream from rest where its reference is: a first point
+    # 1 mm away, or already at 0.079 m/s, would lurch; nothing is sent.
+    t, x, v = sine(x0=0.251, dur=0.05)
+    with pytest.raises(sd.StreamRejected) as e:
+        running.stream(t, x, v, paced=False)
+    assert e.value.row == 0 and e.value.field == "position_m" and "move" in str(e.value)
+    t, x, v = sine(dur=0.05)
+    v = v + 0.079
+    x = x + 0.079 * t
+    with pytest.raises(sd.StreamRejected) as e:
+        running.stream(t, x, v, paced=False)
+    assert (0, "velocity_m_s") in [(r, f) for r, f, _ in e.value.problems], e.value.problems
+    assert running.status().position_m == pytest.approx(0.25, abs=20e-6)
 
 
 def test_nan_names_array_and_row(running):
