@@ -463,6 +463,41 @@ pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filt
     })
 }
 
+/// Below this speed (rad/s) a speed-step sample does not enter the flux
+/// fit: the back-EMF there is under 2.5 % of the hold current's resistive
+/// drop's scatter, and the PLL's noise dominates.
+const FLUX_MIN_SPEED_RAD_S: f64 = 10.0;
+
+/// The magnet flux linkage from motion captures that carry `voltage_q`,
+/// `current_q` and `speed` (the identification's speed steps), with the
+/// winding's R and L known (the d-axis step): `v_q − R i_q − L di_q/dt =
+/// p ψ ω` on every sample faster than 10 rad/s, one coefficient by least
+/// squares. The drive's own belief of ψ sets its torque constant
+/// (`1.5 p ψ`) and its back-EMF feedforward; a unit whose magnets carry less
+/// flux (hot, or a weaker batch) is then driven with both wrong. `None`
+/// when no capture has the columns or nothing moved.
+pub fn identify_flux(caps: &[Capture], pole_pairs: f64, r_ohm: f64, l_h: f64) -> Result<Option<Estimate>> {
+    let mut rows = Vec::new();
+    let mut y = Vec::new();
+    for c in caps {
+        let (Some(v), Some(i), Some(w)) = (c.get("voltage_q"), c.get("current_q"), c.get("speed")) else {
+            continue;
+        };
+        let di = sg_derivative(i, 2, c.dt_s);
+        for k in 0..c.len() {
+            if w[k].abs() >= FLUX_MIN_SPEED_RAD_S {
+                rows.push(vec![pole_pairs * w[k]]);
+                y.push(v[k] - r_ohm * i[k] - l_h * di[k]);
+            }
+        }
+    }
+    if rows.len() < 20 {
+        return Ok(None);
+    }
+    let fit = least_squares(&rows, &y, 1.0)?;
+    Ok(Some(Estimate { value: fit.theta[0], std_err: fit.std_err[0] }))
+}
+
 /// The nominal values diagnose's model holds for the same quantities (the
 /// rig's `[plant]`), for a check.
 #[derive(Clone, Debug, serde::Serialize)]
