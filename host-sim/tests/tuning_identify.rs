@@ -1,8 +1,9 @@
 //! Identification on the simulator: speed steps each way (±20, ±50 rad/s,
 //! captured as `drive step speed` captures them) recover the rig's inertia
 //! (rotor + screw + reflected moving mass), viscous and Coulomb friction
-//! and the gravity load; a d-current step recovers R and L, on the shipped
-//! unit and on a light unit with a hot winding.
+//! and the gravity load; a d-current step recovers R and L, and the speed
+//! steps' q voltage the magnet flux, on the shipped unit and on a light unit
+//! with a hot winding.
 
 use host_sim::config::RigConfig;
 use host_sim::diagnose::residual::Physics;
@@ -30,6 +31,7 @@ fn speed_steps_recover_inertia_friction_and_load_and_a_current_step_r_and_l() {
     assert!(m.fit.r2 > 0.999);
     assert!(rel(e.inductance_h.value, 0.35e-3) < 0.03, "L within 3 %");
     assert!(rel(e.resistance_ohm.value, 0.12) < 0.02, "R within 2 % (d-axis step: see docs/tuning.md)");
+    assert!(rel(e.flux_linkage_wb.as_ref().unwrap().value, rig.plant.motor.flux_linkage_wb) < 0.01, "ψ within 1 % (the speed steps' q voltage)");
     // What a one-way step adds to the inertia, from the identification:
     // the moving mass from the gravity load, μ from the Coulomb friction's
     // load-proportional share.
@@ -81,5 +83,8 @@ fn a_light_unit_with_a_hot_winding_gives_its_own_r_and_l() {
         println!("payload ×{payload}: R {:?} (rig {r:.4}), L {:?} (rig {l:.3e})", e.resistance_ohm, e.inductance_h);
         assert!((e.resistance_ohm.value / r - 1.0).abs() < 0.02, "R within 2 %");
         assert!((e.inductance_h.value / l - 1.0).abs() < 0.03, "L within 3 %");
+        let psi = e.flux_linkage_wb.unwrap().value;
+        println!("  ψ {psi:.5} (rig {:.5})", rig.plant.motor.flux_linkage_wb);
+        assert!((psi / rig.plant.motor.flux_linkage_wb - 1.0).abs() < 0.01, "ψ within 1 %");
     }
 }
