@@ -165,6 +165,11 @@ reasons! {
     // ---- a protection's bound that would check nothing ----
     EncoderBoundNotBelowHalfTurn = "must be below half of encoder.counts_per_rev: a jump of half a turn cannot be told from one the other way",
     EmfMismatchAboveQuarterRating = "must be <= a quarter of control.ratings.speed_max_rad_s, or a frozen encoder under a load that slips the rotor goes unseen",
+
+    // ---- observer weights and the force input they were trained on ----
+    ObserverTrainedOnLoadCell = "weights trained on the load cell, but control.compensation.force_from_estimate = true feeds the observer the drive's force estimate: upload weights trained on the estimate, or set force_from_estimate false",
+    ObserverTrainedOnEstimate = "weights trained on the drive's force estimate, but control.compensation.force_from_estimate = false feeds the observer the load cell: set force_from_estimate true first, or upload weights trained on the load cell",
+    ObserverWeightsForOtherForce = "uploaded observer weights run, trained for the present force input: switch back to the compiled weights (observer compiled) or upload weights for the new force input first",
 }
 
 impl core::fmt::Display for Reason {

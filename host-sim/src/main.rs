@@ -310,7 +310,7 @@ fn dataset(out: PathBuf, params: Option<PathBuf>, spec: DatasetSpec, force_sourc
     let t0 = std::time::Instant::now();
     let rows = dataset::generate(&rig, &spec)?;
     let path = out.join("dataset.csv");
-    dataset::write_csv(&rows, &path)?;
+    dataset::write_csv(&rows, &path, servo_core::observer::block::ForceSource::selected(rig.control.compensation.force_from_estimate))?;
     let runs = rows.last().map_or(0, |r| r.run_id + 1);
     let summary = serde_json::json!({
         "dataset": path.display().to_string(),

@@ -12,7 +12,7 @@ use drive_support::Drive;
 use host_sim::drive::{self, DriveOptions};
 use host_sim::tool::observer as obs;
 use protocol_support::*;
-use servo_core::observer::block::{self, Part, Weights, STRUCTURE_HASH, WORDS};
+use servo_core::observer::block::{self, ForceSource, Part, Weights, STRUCTURE_HASH, WORDS};
 use servo_core::observer::model::{HIDDEN, INPUTS, MODEL};
 use servo_core::observer::{evaluate, log2_decay};
 use servo_core::params::record::{self, RecordError, RECORD_MAX};
@@ -22,7 +22,7 @@ use servo_core::{ControlParams, Reason};
 const SHIFT_MAX_M: f32 = ControlParams::DEFAULT.faults.observer_shift_max_m;
 
 fn validate(words: &[f32]) -> Result<Weights, block::BlockError> {
-    block::validate(INPUTS as u16, HIDDEN as u16, &STRUCTURE_HASH, words, SHIFT_MAX_M)
+    block::validate(INPUTS as u16, HIDDEN as u16, &STRUCTURE_HASH, words, SHIFT_MAX_M, ForceSource::LoadCell)
 }
 
 /// A model other than the compiled one that still passes every check: the
@@ -78,15 +78,15 @@ fn bad_blocks_are_refused_naming_the_part() {
     let good = block::to_words(&MODEL);
     let refuse = |words: &[f32]| validate(words).unwrap_err();
     // Shape.
-    let e = block::validate(INPUTS as u16 + 1, HIDDEN as u16, &STRUCTURE_HASH, &good, SHIFT_MAX_M).unwrap_err();
+    let e = block::validate(INPUTS as u16 + 1, HIDDEN as u16, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
     assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverInputCount));
-    let e = block::validate(INPUTS as u16, 32, &STRUCTURE_HASH, &good, SHIFT_MAX_M).unwrap_err();
+    let e = block::validate(INPUTS as u16, 32, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
     assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverHiddenCount));
     assert_eq!(refuse(&good[..WORDS - 1]).reason, Reason::ObserverWordCount);
     // Structure hash.
     let mut h = STRUCTURE_HASH;
     h[7] ^= 1;
-    let e = block::validate(INPUTS as u16, HIDDEN as u16, &h, &good, SHIFT_MAX_M).unwrap_err();
+    let e = block::validate(INPUTS as u16, HIDDEN as u16, &h, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
     assert_eq!(e.part, Part::StructureHash);
     // NaN and infinity, named by part and element.
     for (i, bad) in [(5usize, f32::NAN), (3 * INPUTS + 9, f32::INFINITY), (WORDS - 3, f32::NEG_INFINITY)] {
@@ -281,7 +281,7 @@ fn uploaded_weights_predict_bit_for_bit_as_compiled_ones_on_the_simulated_drive(
         let d = Drive::start(Some(store.clone()));
         let mut c = d.connect();
         assert_eq!(obs::status(&mut c).unwrap().source, ObserverSource::Compiled);
-        let st = obs::upload(&mut c, &MODEL).unwrap();
+        let st = obs::upload(&mut c, &MODEL, ForceSource::LoadCell).unwrap();
         assert_eq!(st.words_crc, proto::observer::words_crc(&MODEL));
         // A refused upload names the part and keeps the weights.
         let mut bad = block::to_words(&MODEL);
@@ -303,7 +303,7 @@ fn uploaded_weights_predict_bit_for_bit_as_compiled_ones_on_the_simulated_drive(
     let mut c = d.connect();
     assert_eq!(obs::status(&mut c).unwrap().source, ObserverSource::Uploaded);
     let w = other_model();
-    assert_eq!(obs::upload(&mut c, &w).unwrap().words_crc, proto::observer::words_crc(&w));
+    assert_eq!(obs::upload(&mut c, &w, ForceSource::LoadCell).unwrap().words_crc, proto::observer::words_crc(&w));
     assert_ne!(predictions(&w), predictions(&MODEL));
     assert_eq!(obs::use_compiled(&mut c).unwrap().source, ObserverSource::Compiled);
 }

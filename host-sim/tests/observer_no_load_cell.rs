@@ -97,7 +97,8 @@ fn the_shipped_estimate_weights_meet_the_bar_on_the_held_out_paper_run() {
     // normalisation, the shift at the corners of the trained range).
     let words = block::to_words(w);
     let shift_max = rig.control.faults.observer_shift_max_m;
-    block::validate(INPUTS as u16, HIDDEN as u16, &block::STRUCTURE_HASH, &words, shift_max).expect("a drive accepts the shipped file");
+    block::validate(INPUTS as u16, HIDDEN as u16, &block::STRUCTURE_HASH_ESTIMATE, &words, shift_max, block::ForceSource::Estimate)
+        .expect("a drive reading the estimate accepts the shipped file");
     let r = reduction(&rig, &StrokeCycle::paper(6501), Some(w)).expect("runs");
     assert!(r.reduction_pct >= BAR_PCT, "{r:?}");
     // The compiled load-cell model on the same input does less: the

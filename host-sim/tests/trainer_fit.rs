@@ -24,7 +24,7 @@ fn teacher() -> TrainedModel {
         p[5 * N_INPUTS + k] = 0.9_f64.ln(); // widths 0.9
     }
     let norm = Normaliser { input_min: LO, input_max: HI, output_offset: 2e-4, output_scale: 1e-4 };
-    TrainedModel { kind: ModelKind::Error, rbf, params: p, norm }
+    TrainedModel { kind: ModelKind::Error, rbf, params: p, norm, force_source: None }
 }
 
 fn teacher_dataset(runs: usize, per_run: usize) -> Dataset {

@@ -10,7 +10,10 @@ use host_sim::trainer::log_moves::{record, LogPlan};
 use std::path::{Path, PathBuf};
 
 fn options() -> LogOptions {
-    LogOptions::new(f64::from(RigConfig::nominal().unwrap().control.drive_train.screw_lead_m))
+    let mut o = LogOptions::new(f64::from(RigConfig::nominal().unwrap().control.drive_train.screw_lead_m));
+    // The nominal rig logs with its load cell feeding the observer.
+    o.force_source = Some(servo_core::observer::block::ForceSource::LoadCell);
+    o
 }
 
 /// Logs at a light, a half and the full payload, as a user would record
@@ -33,6 +36,12 @@ fn telemetry_logs_become_runs_by_direction_with_the_scale_as_target() {
     let dir = tempfile::tempdir().unwrap();
     let files = logs(dir.path(), &[0.02, 0.5, 1.0], 2);
     let (ds, s) = convert(&files, &options()).unwrap();
+    assert_eq!(ds.force_source, servo_core::observer::block::ForceSource::LoadCell);
+    // The telemetry's force column is whichever input the drive had
+    // selected: without being told which, the conversion refuses.
+    let untold = LogOptions { force_source: None, ..options() };
+    let e = format!("{:#}", convert(&files, &untold).unwrap_err());
+    assert!(e.contains("--force-source"), "{e}");
     // 2 cycles × (out, back, out, back) per payload: 4 moves a direction.
     assert_eq!((s.runs_elongation, s.runs_contraction), (12, 12), "{s:?}");
     assert!(s.short_runs_left_out.is_empty(), "{:?}", s.short_runs_left_out);

@@ -5,7 +5,8 @@
 //! The block is the model's `f32` words in a fixed order ([`Part`] order:
 //! input ranges and scales, centres row by row, widths, decays, output
 //! weights, linear term, bias, output scale and offset), preceded by the
-//! [`STRUCTURE_HASH`] of the network it was trained for. A block is used
+//! structure hash of the network it was trained for and of the force input
+//! it was trained on ([`structure_hash`]). A block is used
 //! whole or not at all: [`validate`] names the first part that is wrong and
 //! the running weights stay as they were.
 //!
@@ -46,7 +47,59 @@ const fn fnv1a(mut h: u64, mut bytes: &[u8]) -> u64 {
     h
 }
 
-const fn structure_hash() -> [u8; 8] {
+/// What the observer's force input was while a model's data were logged:
+/// the load cell, or the drive's current-based estimate
+/// (`control.compensation.force_from_estimate`). The two read the same load
+/// apart by the friction and filtering in between, so weights run only on
+/// the input they were trained on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[serde(rename_all = "snake_case")]
+pub enum ForceSource {
+    LoadCell,
+    Estimate,
+}
+
+impl ForceSource {
+    /// The force input `control.compensation.force_from_estimate` selects.
+    pub const fn selected(force_from_estimate: bool) -> Self {
+        if force_from_estimate {
+            Self::Estimate
+        } else {
+            Self::LoadCell
+        }
+    }
+
+    /// As the trainer's `model.json` and the docs write it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::LoadCell => "load_cell",
+            Self::Estimate => "estimate",
+        }
+    }
+
+    const fn other(self) -> Self {
+        match self {
+            Self::LoadCell => Self::Estimate,
+            Self::Estimate => Self::LoadCell,
+        }
+    }
+
+    /// Why weights trained on `self` are refused where the other runs.
+    const fn mismatch(self) -> Reason {
+        match self {
+            Self::LoadCell => Reason::ObserverTrainedOnLoadCell,
+            Self::Estimate => Reason::ObserverTrainedOnEstimate,
+        }
+    }
+}
+
+/// The structure hash of this firmware's network trained on `source`:
+/// FNV-1a over its kind, its inputs by name and order, the input and hidden
+/// counts, and, for the estimate, the force source. The load cell's hash is
+/// the one without a force-source part, as firmware before the force source
+/// was hashed wrote it, so records saved with load-cell weights stay valid.
+pub const fn structure_hash(source: ForceSource) -> [u8; 8] {
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, b"gaussian-rbf+linear;output=terminal_error_m;inputs=");
     let mut names: &[&str] = &INPUT_NAMES;
     while let [name, rest @ ..] = names {
@@ -56,14 +109,37 @@ const fn structure_hash() -> [u8; 8] {
     }
     h = fnv1a(h, &(INPUTS as u32).to_le_bytes());
     h = fnv1a(h, &(HIDDEN as u32).to_le_bytes());
+    if let ForceSource::Estimate = source {
+        h = fnv1a(h, b";force_source=estimate");
+    }
     h.to_le_bytes()
 }
 
-/// What the network is: its kind (Gaussian RBF with a linear term,
-/// predicting the terminal error), its inputs by name and order, and the
-/// input and hidden counts. A block trained for another network carries
-/// another hash and is refused.
-pub const STRUCTURE_HASH: [u8; 8] = structure_hash();
+/// What the network is (kind, inputs, counts) trained on the load cell. A
+/// block trained for another network carries another hash and is refused.
+pub const STRUCTURE_HASH: [u8; 8] = structure_hash(ForceSource::LoadCell);
+
+/// The same network trained on the drive's force estimate.
+pub const STRUCTURE_HASH_ESTIMATE: [u8; 8] = structure_hash(ForceSource::Estimate);
+
+/// A block's hash checked against this network on the drive's force input
+/// `source`: another network, or the right network trained on the other
+/// force input (named).
+fn check_hash(structure_hash: &[u8; 8], source: ForceSource) -> Result<(), BlockError> {
+    if *structure_hash == structure_hash_of(source) {
+        return Ok(());
+    }
+    let other = source.other();
+    let reason = if *structure_hash == structure_hash_of(other) { other.mismatch() } else { Reason::ObserverStructureHash };
+    Err(err(Part::StructureHash, 0, reason))
+}
+
+const fn structure_hash_of(source: ForceSource) -> [u8; 8] {
+    match source {
+        ForceSource::LoadCell => STRUCTURE_HASH,
+        ForceSource::Estimate => STRUCTURE_HASH_ESTIMATE,
+    }
+}
 
 /// The parts of a block, in word order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
@@ -221,10 +297,12 @@ fn close(a: f32, b: f32, rel: f32) -> bool {
 /// the generator rounds them once from `f64`, the check recomputes in `f32`.
 const DERIVED_REL: f32 = 1e-5;
 
-/// Checks a block against this firmware's network and the drive's shift
-/// bound (`faults.observer_shift_max_m`), and returns its model:
+/// Checks a block against this firmware's network, the drive's force input
+/// `source` and its shift bound (`faults.observer_shift_max_m`), and
+/// returns its model:
 /// - shape: `inputs`, `hidden` and the word count are this network's;
-/// - the structure hash is this network's;
+/// - the structure hash is this network's trained on `source` (weights
+///   trained on the other force input are refused, naming it);
 /// - every word finite;
 /// - normalisation: `input_max > input_min`, `input_scale = 2 / (max − min)`;
 ///   widths positive and `log2_decay = log₂e / 2σ²`; output scale positive;
@@ -236,6 +314,7 @@ pub fn validate(
     structure_hash: &[u8; 8],
     words: &[f32],
     shift_max_m: f32,
+    source: ForceSource,
 ) -> Result<Weights, BlockError> {
     if usize::from(inputs) != INPUTS {
         return Err(err(Part::Shape, 0, Reason::ObserverInputCount));
@@ -246,9 +325,7 @@ pub fn validate(
     if words.len() != WORDS {
         return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
     }
-    if structure_hash != &STRUCTURE_HASH {
-        return Err(err(Part::StructureHash, 0, Reason::ObserverStructureHash));
-    }
+    check_hash(structure_hash, source)?;
     let mut w = [0.0f32; WORDS];
     for (i, (d, &s)) in w.iter_mut().zip(words.iter()).enumerate() {
         if !s.is_finite() {
@@ -339,9 +416,9 @@ impl Staging {
     }
 
     /// Starts an upload, forgetting any unfinished one. The shape and the
-    /// hash are checked here already, so a wrong block is refused before
-    /// its words are sent.
-    pub fn begin(&mut self, inputs: u16, hidden: u16, words: u16, structure_hash: [u8; 8]) -> Result<(), BlockError> {
+    /// hash (against the drive's force input `source`) are checked here
+    /// already, so a wrong block is refused before its words are sent.
+    pub fn begin(&mut self, inputs: u16, hidden: u16, words: u16, structure_hash: [u8; 8], source: ForceSource) -> Result<(), BlockError> {
         self.open = false;
         self.received = 0;
         if usize::from(inputs) != INPUTS {
@@ -353,9 +430,7 @@ impl Staging {
         if usize::from(words) != WORDS {
             return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
         }
-        if structure_hash != STRUCTURE_HASH {
-            return Err(err(Part::StructureHash, 0, Reason::ObserverStructureHash));
-        }
+        check_hash(&structure_hash, source)?;
         self.inputs = inputs;
         self.hidden = hidden;
         self.structure_hash = structure_hash;
@@ -390,7 +465,7 @@ impl Staging {
 
     /// Every word there: the block validated, and the upload closed
     /// whatever the outcome (a refused block is sent again from `Begin`).
-    pub fn commit(&mut self, shift_max_m: f32) -> Result<Weights, BlockError> {
+    pub fn commit(&mut self, shift_max_m: f32, source: ForceSource) -> Result<Weights, BlockError> {
         if !self.open {
             return Err(err(Part::Shape, 0, Reason::ObserverNoUpload));
         }
@@ -399,6 +474,6 @@ impl Staging {
             return Err(err(part, k, Reason::ObserverWordMissing));
         }
         self.open = false;
-        validate(self.inputs, self.hidden, &self.structure_hash, &self.words, shift_max_m)
+        validate(self.inputs, self.hidden, &self.structure_hash, &self.words, shift_max_m, source)
     }
 }

@@ -8,7 +8,7 @@
 //! | 2 | parameter body length, little-endian |
 //! | 2 | observer words: 0 (the compiled model) or `observer::block::WORDS` |
 //! | n | the leaves in path order, 4 bytes each, little-endian (`params::leaves`) |
-//! | 8 | observer `STRUCTURE_HASH` (only with observer words) |
+//! | 8 | observer structure hash, of the parameters' force input (only with observer words) |
 //! | 4·w | the observer block's words, `f32` little-endian (only with observer words) |
 //! | 4 | CRC-32 (ISO-HDLC) of everything before it, little-endian |
 //!
@@ -30,7 +30,7 @@
 //! by its magic.
 
 use super::leaves::{self, LEAF_COUNT};
-use crate::observer::block::{self, BlockError, Weights, STRUCTURE_HASH, WORDS};
+use crate::observer::block::{self, BlockError, ForceSource, Weights, WORDS};
 use super::{ControlParams, ParamError, ValidatedParams};
 use crc::{Crc, NoTable, CRC_32_ISO_HDLC};
 use postcard_schema::key::Key;
@@ -129,7 +129,7 @@ pub fn encode<'a>(p: &ControlParams, observer: Option<&Weights>, buf: &'a mut [u
         let at = HEADER.saturating_add(BODY);
         let sec = buf.get_mut(at..end).ok_or(RecordError::TooLarge)?;
         let (hash, words) = sec.split_at_mut(8);
-        hash.copy_from_slice(&STRUCTURE_HASH);
+        hash.copy_from_slice(&block::structure_hash(ForceSource::selected(p.compensation.force_from_estimate)));
         for (slot, w) in words.chunks_exact_mut(WORD).zip(block::to_words(m).iter()) {
             slot.copy_from_slice(&w.to_le_bytes());
         }
@@ -228,7 +228,8 @@ pub fn decode_record(record: &[u8]) -> Result<Decoded, RecordError> {
         }
         let inputs = crate::observer::model::INPUTS as u16;
         let hidden = crate::observer::model::HIDDEN as u16;
-        let weights = block::validate(inputs, hidden, &h, &words, params.get().faults.observer_shift_max_m);
+        let source = ForceSource::selected(params.get().compensation.force_from_estimate);
+        let weights = block::validate(inputs, hidden, &h, &words, params.get().faults.observer_shift_max_m, source);
         ObserverSection { weights, words_offset: header.saturating_add(BODY).saturating_add(8) }
     });
     Ok(Decoded { params, observer, version })

@@ -37,14 +37,21 @@ pub fn is_compiled(m: &Weights) -> bool {
     core::ptr::eq(m, &block::COMPILED)
 }
 
-/// The status reply for the weights `m`.
-pub fn status(m: &Weights) -> ObserverStatus {
+/// The force input the drive's parameters select: uploaded weights must
+/// have been trained on it.
+pub fn force_source(p: &ControlParams) -> block::ForceSource {
+    block::ForceSource::selected(p.compensation.force_from_estimate)
+}
+
+/// The status reply for the weights `m` on a drive whose force input is
+/// `source` (the structure hash an upload must carry).
+pub fn status(m: &Weights, source: block::ForceSource) -> ObserverStatus {
     ObserverStatus {
         source: if is_compiled(m) { ObserverSource::Compiled } else { ObserverSource::Uploaded },
         inputs: model::INPUTS as u16,
         hidden: model::HIDDEN as u16,
         words: block::WORDS as u16,
-        structure_hash: block::STRUCTURE_HASH,
+        structure_hash: block::structure_hash(source),
         words_crc: words_crc(m),
     }
 }
@@ -60,10 +67,11 @@ fn no_staging() -> Error {
 /// One `Request::Observer`.
 pub(super) fn handle<D: DriveAccess, S: ParamStore>(o: &ObserverRequest, drive: &mut D, store: &mut S) -> Result<Reply, Error> {
     match o {
-        ObserverRequest::Status => Ok(Reply::Observer(status(drive.observer_weights()))),
+        ObserverRequest::Status => Ok(Reply::Observer(status(drive.observer_weights(), force_source(&drive.params())))),
         ObserverRequest::Begin { inputs, hidden, words, structure_hash } => {
+            let source = force_source(&drive.params());
             let st = store.observer_staging().ok_or_else(no_staging)?;
-            st.begin(*inputs, *hidden, *words, *structure_hash).map_err(Error::ObserverBlock)?;
+            st.begin(*inputs, *hidden, *words, *structure_hash, source).map_err(Error::ObserverBlock)?;
             Ok(Reply::Ok)
         }
         ObserverRequest::Write { start, words } => {
@@ -77,16 +85,17 @@ pub(super) fn handle<D: DriveAccess, S: ParamStore>(o: &ObserverRequest, drive: 
             }
             let p = drive.params();
             let st = store.observer_staging().ok_or_else(no_staging)?;
-            let w = st.commit(p.faults.observer_shift_max_m).map_err(Error::ObserverBlock)?;
+            let w = st.commit(p.faults.observer_shift_max_m, force_source(&p)).map_err(Error::ObserverBlock)?;
             store_record(&p, Some(&w), drive, store)?;
-            Ok(Reply::Observer(status(drive.observer_weights())))
+            Ok(Reply::Observer(status(drive.observer_weights(), force_source(&p))))
         }
         ObserverRequest::UseCompiled => {
             if !bridge_off(drive) {
                 return Err(Error::BridgeOn);
             }
-            store_record(&drive.params(), None, drive, store)?;
-            Ok(Reply::Observer(status(drive.observer_weights())))
+            let p = drive.params();
+            store_record(&p, None, drive, store)?;
+            Ok(Reply::Observer(status(drive.observer_weights(), force_source(&p))))
         }
     }
 }

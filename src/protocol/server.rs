@@ -231,6 +231,12 @@ impl<P: Borrow<ValidatedParams>> Server<P> {
             LeafError::NoSuchVariant => Error::InvalidParam { index, reason: Reason::NoSuchVariant },
         })?;
         let validated = ValidatedParams::new(staged).map_err(invalid_param)?;
+        // Uploaded weights were checked against the force input they run
+        // on; another input would feed them a force they never saw.
+        let force_changes = present.compensation.force_from_estimate != staged.compensation.force_from_estimate;
+        if force_changes && !crate::protocol::observer::is_compiled(drive.observer_weights()) {
+            return Err(Error::InvalidParam { index, reason: Reason::ObserverWeightsForOtherForce });
+        }
         if !bridge_off(&drive.status()) && present.bridge_off_change(&staged).is_some() {
             return Err(Error::NeedsBridgeOff { index });
         }

@@ -96,7 +96,7 @@ impl NativeDrive {
     }
 
     fn ask(&mut self, request: Request) -> PyResult<Reply> {
-        let what = format!("{request:?}");
+        let what = client::request_text(&request);
         let c = self.c()?;
         match Python::with_gil(|py| py.allow_threads(|| c.request(request))).map_err(link_err)? {
             Reply::Error(e) => Err(refused(&what, &e)),
@@ -203,7 +203,10 @@ impl NativeDrive {
 
     #[setter]
     fn set_timeout_s(&mut self, t: f64) -> PyResult<()> {
-        self.c()?.timeout = Duration::from_secs_f64(t.max(0.01));
+        if !(t.is_finite() && t > 0.0 && t <= 86_400.0) {
+            return Err(raise("InputError", format!("`timeout_s` = {t}: a time above 0 and at most a day (86400 s) is needed"), serde_json::json!({ "field": "timeout_s" })));
+        }
+        self.c()?.timeout = Duration::from_secs_f64(t);
         Ok(())
     }
 
@@ -288,10 +291,10 @@ impl NativeDrive {
     /// stored with the parameters, run; verified by CRC). A refusal names
     /// the part.
     fn upload_observer(&mut self, path: &str) -> PyResult<String> {
-        let w = tool::observer::read_model(std::path::Path::new(path))
+        let (w, source) = tool::observer::read_model_file(std::path::Path::new(path))
             .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({ "field": path })))?;
         let c = self.c()?;
-        let s = Python::with_gil(|py| py.allow_threads(|| tool::observer::upload(c, &w)))
+        let s = Python::with_gil(|py| py.allow_threads(|| tool::observer::upload(c, &w, source)))
             .map_err(|e| raise("ObserverRejected", format!("{e:#}"), serde_json::json!({})))?;
         Ok(observer_json(&s))
     }
@@ -449,6 +452,9 @@ impl NativeDrive {
             t => return Err(raise("ValueError", format!("unknown trigger `{t}`: command, fault or test_start"), serde_json::json!({ "field": "trigger" }))),
         };
         let c = self.c()?;
+        if !(wait_s.is_finite() && wait_s > 0.0 && wait_s <= 86_400.0) {
+            return Err(raise("InputError", format!("`wait_s` = {wait_s}: a time above 0 and at most a day (86400 s) is needed"), serde_json::json!({ "field": "wait_s" })));
+        }
         let wait = Duration::from_secs_f64(wait_s);
         Python::with_gil(|py| py.allow_threads(|| tool::capture(c, &sig, samples, decimation, pre_trigger, trig, wait)))
             .map(capture_tuple)
@@ -500,7 +506,7 @@ impl NativeDrive {
     /// Telemetry records received within `wait_s`: (time_s, {name: value}) in arrival order.
     fn telemetry_poll(&mut self, wait_s: f64) -> PyResult<Vec<(f32, Vec<(String, f32)>)>> {
         let c = self.c()?;
-        let wait = Duration::from_secs_f64(wait_s.max(0.0));
+        let wait = Duration::from_secs_f64(if wait_s.is_finite() { wait_s.clamp(0.0, 86_400.0) } else { 0.0 });
         Python::with_gil(|py| py.allow_threads(|| c.poll(wait))).map_err(link_err)?;
         Ok(c.telemetry
             .drain(..)

@@ -16,11 +16,13 @@ def test_enable_move_jog_stop_disable(drive):
     drive._wait(lambda s: s.mode is sd.Mode.DISABLED, 10, "disable")
 
 
-def test_move_beyond_stroke_is_clamped_and_said(running):
+def test_move_beyond_stroke_is_refused_before_sending(running):
+    # The drive would clamp it and run to the end stop; the package refuses it.
     stroke_max = running.get("limits.stroke_max_m")
-    r = running.move(stroke_max + 0.1)
-    assert r["outcome"] == "clamped_to_stroke" and r["position_m"] <= stroke_max
-    running.stop()
+    with pytest.raises(sd.InputError) as e:
+        running.move(stroke_max + 0.1)
+    assert e.value.field == "position_m" and "outside the stroke" in str(e.value)
+    assert running.status().speed_rad_s == pytest.approx(0, abs=1.0)
 
 
 def test_move_while_disabled_is_refused_with_reason(drive):
@@ -48,3 +50,25 @@ def test_set_home_and_clear_faults(drive):
     assert drive.status().position_m == pytest.approx(0.2, abs=1e-4)
     drive.clear_faults()
     assert drive.status().faults == ()
+
+
+def test_bad_numbers_and_a_move_in_millimetres_are_refused_before_sending(running):
+    # A target typed in millimetres: refused with the unit named, the rod stays.
+    before = running.status().position_m
+    with pytest.raises(sd.InputError) as e:
+        running.move(250)
+    assert e.value.field == "position_m" and "millimetres? positions are in metres: 0.25 m" in str(e.value)
+    assert running.status().position_m == pytest.approx(before, abs=20e-6)
+    # Times that are not finite or not above zero: named, never a panic.
+    for bad in (float("nan"), float("inf"), -1, 0):
+        with pytest.raises(sd.InputError) as e:
+            running.timeout_s = bad
+        assert e.value.field == "timeout_s"
+        with pytest.raises(sd.InputError) as e:
+            running.capture(["speed"], 10, wait_s=bad)
+        assert e.value.field == "wait_s"
+    assert running.timeout_s == pytest.approx(5.0)
+    # A refusal names the request as the user would type it, not Rust debug text.
+    with pytest.raises(sd.DriveError) as e:
+        running.set("speed_pi.kp", 1e30)
+    assert "param set control.speed_pi.kp" in str(e.value) and "ParamSet {" not in str(e.value)

@@ -14,6 +14,7 @@
 use super::stroke_cycle::{run_stroke_cycle, Direction, StrokeCycle};
 use crate::config::RigConfig;
 use crate::rigs::{Draw, FamilySpec, C7_LEAD_ERROR_M_PER_M};
+use crate::trainer::dataset::{force_column, ForceSource, ALL_COLUMNS};
 use anyhow::{bail, Context, Result};
 use rand::SeedableRng;
 use rayon::prelude::*;
@@ -239,9 +240,11 @@ fn generate_on(rig: &RigConfig, spec: &DatasetSpec, r: usize) -> Result<Vec<Data
     Ok(rows)
 }
 
-/// Writes `rows` as CSV.
-pub fn write_csv(rows: &[DatasetRow], path: &Path) -> Result<()> {
-    let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
+/// Writes `rows` as CSV, the force column named for `source`, the force
+/// the drive's observer read (`trainer::dataset::force_column`).
+pub fn write_csv(rows: &[DatasetRow], path: &Path, source: ForceSource) -> Result<()> {
+    let mut w = csv::WriterBuilder::new().has_headers(false).from_path(path).with_context(|| format!("creating {}", path.display()))?;
+    w.write_record(ALL_COLUMNS.map(|c| if c == "load_force_n" { force_column(source) } else { c }))?;
     for r in rows {
         w.serialize(r).with_context(|| format!("writing {}", path.display()))?;
     }

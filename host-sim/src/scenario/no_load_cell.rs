@@ -38,6 +38,11 @@ impl ForceSource {
     pub fn apply(self, rig: &mut RigConfig) {
         rig.control.compensation.force_from_estimate = self == ForceSource::Estimate;
     }
+
+    /// The core's name for it (what weights are tied to).
+    pub fn core(self) -> servo_core::observer::block::ForceSource {
+        servo_core::observer::block::ForceSource::selected(self == ForceSource::Estimate)
+    }
 }
 
 /// `host-sim observer-no-load-cell`.
@@ -151,7 +156,7 @@ fn train(rig: &RigConfig, out: &std::path::Path) -> Result<(PathBuf, serde_json:
     let dir = out.join("dataset");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let data = dir.join("dataset.csv");
-    dataset::write_csv(&rows, &data)?;
+    dataset::write_csv(&rows, &data, servo_core::observer::block::ForceSource::selected(rig.control.compensation.force_from_estimate))?;
     let dataset_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let model_dir = out.join("observer");

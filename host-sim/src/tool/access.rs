@@ -69,7 +69,7 @@ pub fn param_index(p: &str) -> Result<u16> {
     let full = params::full_path(p);
     servo_core::protocol::params::index_of(&full)
         .and_then(|i| u16::try_from(i).ok())
-        .ok_or_else(|| anyhow!("no parameter `{full}`"))
+        .ok_or_else(|| anyhow!("no parameter `{full}`{}; `param list` shows them", super::config_file::suggestion(&full)))
 }
 
 pub fn param_get(c: &mut Client, path: &str) -> Result<Value> {

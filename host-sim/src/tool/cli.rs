@@ -19,7 +19,7 @@ pub struct ConnectArgs {
     #[arg(long, global = true)]
     pub tcp: Option<String>,
     /// Seconds to wait for each reply.
-    #[arg(long, global = true, default_value_t = 2.0)]
+    #[arg(long, global = true, default_value_t = 2.0, allow_negative_numbers = true, value_parser = seconds_positive)]
     pub timeout_s: f64,
 }
 
@@ -65,11 +65,11 @@ pub enum DriveCmd {
         #[arg(long)]
         commissioned: bool,
         /// Rod position at start, metres.
-        #[arg(long, default_value_t = 0.25)]
+        #[arg(long, default_value_t = 0.25, allow_negative_numbers = true, value_parser = finite)]
         initial_position_m: f64,
         /// Fast pacing: simulated seconds per stream frame (default: one
         /// position-loop period, i.e. a 1 kHz stream).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true, value_parser = seconds_positive)]
         stream_period_s: Option<f64>,
     },
     /// Who the drive is, its schema, mode, faults and saved record.
@@ -84,19 +84,20 @@ pub enum DriveCmd {
     /// A live view of the drive (read-only; q or Esc ends it).
     Watch {
         /// Refresh rate, Hz.
-        #[arg(long, default_value_t = 20.0)]
+        #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = positive)]
         rate_hz: f64,
         /// End after this many seconds (0: until q).
-        #[arg(long, default_value_t = 0.0)]
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = seconds_or_zero)]
         seconds: f64,
     },
     /// Record every telemetry field to a CSV.
     Telemetry {
         #[arg(long)]
         csv: PathBuf,
-        #[arg(long, default_value_t = 100)]
+        /// Records per second, 1 … 1000 (the position-loop rate).
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u16).range(1..=1000))]
         rate_hz: u16,
-        #[arg(long, default_value_t = 10.0)]
+        #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = seconds_positive)]
         seconds: f64,
     },
     #[command(subcommand)]
@@ -108,18 +109,18 @@ pub enum DriveCmd {
     Cmd { name: String, arg: Option<String> },
     /// A planned move to POSITION_M.
     Move {
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = finite)]
         position_m: f64,
     },
     /// A planned move by DISTANCE_M from where the reference is.
     Jog {
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = finite)]
         distance_m: f64,
     },
     /// Declares the present position to be POSITION_M (homes the axis on a
     /// rig with a known reference).
     SetHome {
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = finite)]
         position_m: f64,
     },
     /// Stream setpoints from a CSV (t_s, position_m, velocity_m_s[, force_n]).
@@ -137,8 +138,9 @@ pub enum DriveCmd {
     Step {
         #[arg(value_enum)]
         target: test::Target,
+        #[arg(allow_negative_numbers = true, value_parser = finite)]
         amplitude: f64,
-        #[arg(long, default_value_t = 0.1)]
+        #[arg(long, default_value_t = 0.1, allow_negative_numbers = true, value_parser = seconds_positive)]
         duration: f64,
         #[arg(long, default_value = "out/step")]
         out: PathBuf,
@@ -150,13 +152,13 @@ pub enum DriveCmd {
     Chirp {
         #[arg(value_enum)]
         target: test::Target,
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         amplitude: f64,
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true, value_parser = positive)]
         from: f64,
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true, value_parser = positive)]
         to: f64,
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = seconds_positive)]
         duration: f64,
         #[arg(long, default_value = "out/chirp")]
         out: PathBuf,
@@ -168,9 +170,9 @@ pub enum DriveCmd {
         /// Comma-separated signal names (e.g. current_q,speed).
         #[arg(long, value_delimiter = ',')]
         signals: Vec<String>,
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u16).range(1..))]
         samples: u16,
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
         decimation: u16,
         #[arg(long, default_value = "command")]
         trigger: String,
@@ -179,7 +181,7 @@ pub enum DriveCmd {
         #[arg(long, default_value = "capture.csv")]
         out: PathBuf,
         /// Seconds to wait for the trigger.
-        #[arg(long, default_value_t = 30.0)]
+        #[arg(long, default_value_t = 30.0, allow_negative_numbers = true, value_parser = seconds_positive)]
         wait_s: f64,
     },
     /// Convert the firmware's defmt log (probe-rs text) to the diagnose CSV.
@@ -222,10 +224,10 @@ pub enum DriveCmd {
         #[arg(long)]
         params: Option<PathBuf>,
         /// Length of the trajectory, s.
-        #[arg(long, default_value_t = 20.0)]
+        #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = seconds_positive)]
         seconds: f64,
         /// Its setpoint rate, Hz (the drive is served at the same rate).
-        #[arg(long, default_value_t = 1000.0)]
+        #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true, value_parser = positive)]
         rate_hz: f64,
     },
     /// How often `watch` refreshes beside a controlling client: a simulated
@@ -236,9 +238,9 @@ pub enum DriveCmd {
         #[arg(long)]
         params: Option<PathBuf>,
         /// The rate `watch` is asked for, Hz (its default).
-        #[arg(long, default_value_t = 20.0)]
+        #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = positive)]
         rate_hz: f64,
-        #[arg(long, default_value_t = 3.0)]
+        #[arg(long, default_value_t = 3.0, allow_negative_numbers = true, value_parser = seconds_positive)]
         seconds: f64,
     },
 }
@@ -275,4 +277,52 @@ pub enum ParamCmd {
     Export { file: PathBuf },
     /// Sets the parameters a TOML file gives (all of them or some).
     Import { file: PathBuf },
+}
+
+/// The longest time an argument may give, s (a day): beyond it a wait is a
+/// typo, and `Duration` cannot hold an unbounded one.
+const SECONDS_MAX: f64 = 86_400.0;
+
+fn number(text: &str) -> Result<f64, String> {
+    let v: f64 = text.trim().parse().map_err(|_| format!("`{text}` is not a number"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("`{text}` is not a finite number"))
+    }
+}
+
+/// A finite number (positions, amplitudes: the drive bounds them further).
+pub fn finite(text: &str) -> Result<f64, String> {
+    number(text)
+}
+
+/// A finite number above zero (rates, frequencies).
+pub fn positive(text: &str) -> Result<f64, String> {
+    let v = number(text)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not above zero"))
+    }
+}
+
+/// A time above zero and at most a day, s.
+pub fn seconds_positive(text: &str) -> Result<f64, String> {
+    let v = positive(text)?;
+    if v <= SECONDS_MAX {
+        Ok(v)
+    } else {
+        Err(format!("{v} s is beyond a day ({SECONDS_MAX} s)"))
+    }
+}
+
+/// A time from zero to a day, s (zero: no end).
+pub fn seconds_or_zero(text: &str) -> Result<f64, String> {
+    let v = number(text)?;
+    if (0.0..=SECONDS_MAX).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} s is not within 0 … {SECONDS_MAX} s"))
+    }
 }

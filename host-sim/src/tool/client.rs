@@ -263,6 +263,19 @@ pub fn request_text(r: &Request) -> String {
         Request::Save => "param save".into(),
         Request::Load => "param load".into(),
         Request::Defaults => "param defaults".into(),
+        Request::Test(t) => test_text(t),
+        Request::Capture(servo_core::capture::CaptureRequest::Configure(c)) => format!(
+            "capture --signals {} --samples {} --decimation {} --pre-trigger {} --trigger {}",
+            c.signals.iter().map(|s| super::scope::signal_name(*s)).collect::<Vec<_>>().join(","),
+            c.samples,
+            c.decimation,
+            c.pre_trigger,
+            match c.trigger {
+                servo_core::capture::CaptureTrigger::Command => "command",
+                servo_core::capture::CaptureTrigger::Fault => "fault",
+                servo_core::capture::CaptureTrigger::TestStart => "test",
+            }
+        ),
         other => format!("{other:?}"),
     }
 }
@@ -284,6 +297,25 @@ fn command_text(c: &protocol::DriveCommand) -> String {
         DriveCommand::Jog { distance_m } => format!("jog {distance_m}"),
         DriveCommand::SetHome { position_m } => format!("set-home {position_m}"),
         DriveCommand::SetPositionShift { shift_m } => format!("SetPositionShift {{ shift_m: {shift_m} }}"),
+    }
+}
+
+/// A test signal as the tool's `step` / `chirp` command gives it.
+fn test_text(t: &servo_core::test_signals::TestSignal) -> String {
+    use servo_core::test_signals::{ChirpTarget, TestSignal as T};
+    match t {
+        T::CurrentStep { axis_q: true, amplitude_a, duration_s } => format!("step current {amplitude_a} --duration {duration_s}"),
+        T::CurrentStep { axis_q: false, amplitude_a, duration_s } => format!("step current {amplitude_a} --duration {duration_s} (d axis)"),
+        T::SpeedStep { amplitude_rad_s, duration_s } => format!("step speed {amplitude_rad_s} --duration {duration_s}"),
+        T::PositionStep { distance_m, duration_s } => format!("step position {distance_m} --duration {duration_s}"),
+        T::Chirp { target, amplitude, start_hz, end_hz, duration_s } => {
+            let t = match target {
+                ChirpTarget::Current => "current",
+                ChirpTarget::Speed => "speed",
+                ChirpTarget::Position => "position",
+            };
+            format!("chirp {t} --amplitude {amplitude} --from {start_hz} --to {end_hz} --duration {duration_s}")
+        }
     }
 }
 

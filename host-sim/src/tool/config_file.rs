@@ -49,7 +49,7 @@ pub fn read_leaves(path: &Path) -> Result<Vec<(String, Value)>> {
     walk("", &table, &mut raw);
     for (p, v) in raw {
         let Some(index) = protocol::params::index_of(&p) else {
-            errors.push(format!("{name}: `{p}`: no such parameter (`param list` shows them)"));
+            errors.push(format!("{name}: `{p}`: no such parameter{} (`param list` shows them)", suggestion(&p)));
             continue;
         };
         let Some((_, kind)) = protocol::params::name(index) else {
@@ -68,8 +68,11 @@ pub fn read_leaves(path: &Path) -> Result<Vec<(String, Value)>> {
         match value {
             Some(Value::F32(x)) if !x.is_finite() => errors.push(format!("{name}: `{p}`: {v} is not a finite number")),
             Some(value) => out.push((p, value)),
-            None => errors.push(format!("{name}: `{p}`: {v} is not a {kind:?} value")),
+            None => errors.push(format!("{name}: `{p}`: {v} is not {}", kind_text(&p, kind))),
         }
+    }
+    if out.is_empty() && errors.is_empty() {
+        bail!("{name}: no parameters (a `[control.…]` table of `path = value` lines, as `param export` writes); nothing was sent to the drive");
     }
     if !errors.is_empty() {
         bail!("{}\nnothing was sent to the drive", errors.join("\n"));
@@ -140,4 +143,52 @@ fn rollback(c: &mut Client, done: &[(String, Value)]) {
 /// `param list` lines: `path = value`, enums by name.
 pub fn list_lines(list: &[(String, Value)]) -> Vec<String> {
     list.iter().map(|(p, v)| format!("{p} = {}", value_text_at(p, v))).collect()
+}
+
+/// What a leaf of `kind` takes, in words (enums: their names).
+fn kind_text(path: &str, kind: ValueKind) -> String {
+    match kind {
+        ValueKind::F32 => "a number".into(),
+        ValueKind::U32 => "an unsigned integer".into(),
+        ValueKind::I32 => "an integer".into(),
+        ValueKind::Bool => "true or false".into(),
+        ValueKind::Variant => {
+            let names: Vec<String> = (0..=u8::MAX).map_while(|i| super::params::variant_name(path, i)).collect();
+            format!("one of \"{}\"", names.join("\", \""))
+        }
+    }
+}
+
+/// `: did you mean `…`?` for a path one typo (or the `control.` table)
+/// away from a parameter; else nothing.
+pub fn suggestion(path: &str) -> String {
+    let under_control = format!("control.{path}");
+    if protocol::params::index_of(&under_control).is_some() {
+        return format!(": the parameters are under `[control]`: `{under_control}`");
+    }
+    let best = (0..protocol::params::PARAM_COUNT)
+        .filter_map(|i| u16::try_from(i).ok().map(param_path))
+        .map(|c| (edit_distance(path, &c), c))
+        .min_by_key(|(d, _)| *d);
+    match best {
+        // Up to two edits, or a quarter of the path for long ones.
+        Some((d, c)) if d <= 2.max(path.len() / 4) => format!(": did you mean `{c}`?"),
+        _ => String::new(),
+    }
+}
+
+/// Levenshtein distance over characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
 }

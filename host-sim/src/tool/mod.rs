@@ -11,6 +11,7 @@ pub mod bench_gain;
 pub mod cli;
 pub mod client;
 pub mod config_file;
+pub mod moves;
 pub mod observer;
 pub mod params;
 pub mod run;

@@ -13,7 +13,7 @@ use crate::trainer::codegen::to_core_model;
 use crate::trainer::dataset::ModelKind;
 use crate::trainer::network::TrainedModel;
 use anyhow::{anyhow, bail, Context, Result};
-use servo_core::observer::block::{self, Weights, CHUNK_WORDS, STRUCTURE_HASH, WORDS};
+use servo_core::observer::block::{self, ForceSource, Weights, CHUNK_WORDS, WORDS};
 use servo_core::observer::model::{HIDDEN, INPUTS};
 use servo_core::protocol::observer::words_crc;
 use servo_core::protocol::{ObserverRequest, ObserverSource, ObserverStatus, Reply, Request};
@@ -23,6 +23,12 @@ use std::path::Path;
 /// rounding as the code generator's, so the words are those a compiled
 /// model would hold).
 pub fn read_model(path: &Path) -> Result<Weights> {
+    read_model_file(path).map(|(w, _)| w)
+}
+
+/// [`read_model`] and the force the model was trained on, which the upload
+/// names to the drive (through the structure hash).
+pub fn read_model_file(path: &Path) -> Result<(Weights, ForceSource)> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let m: TrainedModel = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a trainer model.json (written by `host-sim train --out DIR`)", path.display()))?;
@@ -36,7 +42,13 @@ pub fn read_model(path: &Path) -> Result<Weights> {
             m.hidden()
         );
     }
-    to_core_model::<HIDDEN>(&m).with_context(|| format!("{}", path.display()))
+    let Some(source) = m.force_source else {
+        bail!(
+            "{}: no \"force_source\" (\"load_cell\" or \"estimate\"): the file predates the trainer recording which force it was trained on; train it again",
+            path.display()
+        );
+    };
+    Ok((to_core_model::<HIDDEN>(&m).with_context(|| format!("{}", path.display()))?, source))
 }
 
 fn status_of(r: Reply) -> Result<ObserverStatus> {
@@ -77,10 +89,12 @@ pub fn upload_words(c: &mut Client, inputs: u16, hidden: u16, structure_hash: [u
     }
 }
 
-/// Uploads `w` and checks that the drive runs exactly these words.
-pub fn upload(c: &mut Client, w: &Weights) -> Result<ObserverStatus> {
+/// Uploads `w`, trained on the force `source`, and checks that the drive
+/// runs exactly these words. A drive whose force input is the other one
+/// refuses it, naming both.
+pub fn upload(c: &mut Client, w: &Weights, source: ForceSource) -> Result<ObserverStatus> {
     let words = block::to_words(w);
-    let s = upload_words(c, INPUTS as u16, HIDDEN as u16, STRUCTURE_HASH, &words)?;
+    let s = upload_words(c, INPUTS as u16, HIDDEN as u16, block::structure_hash(source), &words)?;
     let want = words_crc(w);
     if s.source != ObserverSource::Uploaded || s.words_crc != want {
         bail!(

@@ -4,7 +4,7 @@
 use super::access::{command, fetch_one_f32, info_json, param_get, param_list, param_set, reply_text};
 use super::cli::{DriveArgs, DriveCmd, ObserverCmd, ParamCmd};
 use super::client::Client;
-use super::{bench, bench_asap, bench_family, test, config_file, observer, params, stream_cmd, stream_loss, view, watch_bench};
+use super::{bench, bench_asap, bench_family, moves, test, config_file, observer, params, stream_cmd, stream_loss, view, watch_bench};
 use super::scope::{capture, signal_by_name};
 use crate::config::RigConfig;
 use crate::drive::{self, DriveOptions};
@@ -110,8 +110,8 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             let s = match o {
                 ObserverCmd::Status => observer::status(c)?,
                 ObserverCmd::Upload { model } => {
-                    let w = observer::read_model(&model)?;
-                    observer::upload(c, &w).with_context(|| format!("uploading {}", model.display()))?
+                    let (w, source) = observer::read_model_file(&model)?;
+                    observer::upload(c, &w, source).with_context(|| format!("uploading {} (trained on the {})", model.display(), source.name()))?
                 }
                 ObserverCmd::Compiled => observer::use_compiled(c)?,
             };
@@ -153,8 +153,14 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
             }
         },
         DriveCmd::Cmd { name, arg } => println!("{}", reply_text(&command(c, &name, arg.as_deref())?)),
-        DriveCmd::Move { position_m } => println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::MoveTo { position_m: position_m as f32 }))?)),
-        DriveCmd::Jog { distance_m } => println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::Jog { distance_m: distance_m as f32 }))?)),
+        DriveCmd::Move { position_m } => {
+            moves::within_stroke(c, &format!("move {position_m}"), position_m)?;
+            println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::MoveTo { position_m: position_m as f32 }))?))
+        }
+        DriveCmd::Jog { distance_m } => {
+            moves::check_jog(c, distance_m)?;
+            println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::Jog { distance_m: distance_m as f32 }))?))
+        }
         DriveCmd::SetHome { position_m } => {
             println!("{}", reply_text(&c.ask(Request::Command(DriveCommand::SetHome { position_m: position_m as f32 }))?))
         }

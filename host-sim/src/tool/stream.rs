@@ -20,16 +20,31 @@ pub struct Row {
 /// data row).
 pub fn read_csv(path: &Path) -> Result<Vec<Row>> {
     let name = path.display().to_string();
-    let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_path(path).with_context(|| format!("reading {name}"))?;
-    let headers: Vec<String> = rdr.headers()?.iter().map(str::to_string).collect();
+    // Flexible: a short or long row is named below, with the others.
+    let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).flexible(true).from_path(path).with_context(|| format!("reading {name}"))?;
+    let headers: Vec<String> = rdr.headers().with_context(|| format!("reading {name}"))?.iter().map(str::to_string).collect();
+    if headers.iter().all(|h| h.is_empty()) {
+        bail!("{name}: empty: no header row (need t_s, position_m, velocity_m_s[, force_n])");
+    }
+    for (i, h) in headers.iter().enumerate() {
+        if headers[..i].contains(h) {
+            bail!("{name}: the header names `{h}` twice (columns {} and {}): which one is meant is unknown", headers.iter().position(|x| x == h).unwrap_or(0) + 1, i + 1);
+        }
+    }
     let col = |n: &str| headers.iter().position(|h| h == n);
-    let need = |n: &str| col(n).with_context(|| format!("{name}: no `{n}` column (need t_s, position_m, velocity_m_s[, force_n])"));
+    let need = |n: &str| {
+        col(n).with_context(|| format!("{name}: no `{n}` column (need t_s, position_m, velocity_m_s[, force_n], in s, m, m/s, N; the header has: {})", headers.join(", ")))
+    };
     let (ct, cp, cv, cf) = (need("t_s")?, need("position_m")?, need("velocity_m_s")?, col("force_n"));
     let mut rows = Vec::new();
     let mut errors = Vec::new();
     for (r, rec) in rdr.records().enumerate() {
         let row = r + 1;
         let rec = rec.with_context(|| format!("{name}:{row}"))?;
+        if rec.len() != headers.len() {
+            errors.push(format!("{name}:{row}: {} fields, the header has {} (a truncated row, or a stray delimiter)", rec.len(), headers.len()));
+            continue;
+        }
         let mut field = |c: usize, f: &str| -> Option<f64> {
             let cell = rec.get(c).unwrap_or("");
             match cell.parse::<f64>() {
@@ -93,6 +108,27 @@ impl StreamLimits {
             interval_max_s: f64::from(p.stream.period_max_s),
             start_reference_m: None,
         }
+    }
+}
+
+/// Seconds as milliseconds to 3 decimals, or in exponent form when huge.
+fn ms_text(s: f64) -> String {
+    let ms = s * 1e3;
+    if ms.abs() < 1e6 {
+        format!("{ms:.3}")
+    } else {
+        format!("{ms:.3e}")
+    }
+}
+
+/// ` (t_s in milliseconds? the column is in seconds)` when a step of `dt`
+/// read as milliseconds would lie within `lo … hi` (s).
+fn milliseconds_hint(dt: f64, lo: f64, hi: f64) -> &'static str {
+    let s = dt * 1e-3;
+    if s >= lo * (1.0 - PERIOD_TOLERANCE) && s <= hi * (1.0 + PERIOD_TOLERANCE) {
+        " (t_s in milliseconds? the column is in seconds)"
+    } else {
+        ""
     }
 }
 
@@ -168,7 +204,7 @@ pub fn reference_position(client: &mut Client) -> Result<f64> {
     match (rest, last) {
         (Some(x), _) => Ok(f64::from(x)),
         (None, Some(x)) => bail!(
-            "the drive's position reference is still moving (at {x} m after {:.1} s: a move or a stop in progress): wait for it to end (`status`), then stream",
+            "the drive's position reference is still moving (at {x} m after {:.1} s: a move or a stop in progress): wait for it to end (`status`), then try again",
             client.timeout.as_secs_f64()
         ),
         (None, None) => bail!("no telemetry record with the position reference arrived: where the stream would start is unknown"),
@@ -180,17 +216,24 @@ pub fn reference_position(client: &mut Client) -> Result<f64> {
 /// velocity against its position step. Every problem names
 /// `file:row:field` and the figures.
 pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
-    let mut errors = rows.first().map(|r| check_start(name, r, l.start_reference_m)).unwrap_or_default();
+    // A first point outside the stroke is named by the stroke check below;
+    // moving there is no fix.
+    let reference = l.start_reference_m.filter(|_| rows.first().is_some_and(|r| (l.stroke_min_m..=l.stroke_max_m).contains(&r.position_m)));
+    let mut errors = rows.first().map(|r| check_start(name, r, reference)).unwrap_or_default();
     for (i, r) in rows.iter().enumerate() {
         let row = i + 1;
         if r.position_m < l.stroke_min_m || r.position_m > l.stroke_max_m {
             errors.push(format!(
-                "{name}:{row}:position_m: {} m outside the stroke {} … {} m (control.limits.stroke_min_m, stroke_max_m)",
-                r.position_m, l.stroke_min_m, l.stroke_max_m
+                "{name}:{row}:position_m: {} m outside the stroke {} … {} m (control.limits.stroke_min_m, stroke_max_m){}",
+                r.position_m,
+                l.stroke_min_m,
+                l.stroke_max_m,
+                super::moves::millimetre_hint(r.position_m, l.stroke_min_m, l.stroke_max_m)
             ));
         }
         if r.velocity_m_s.abs() > l.velocity_max_m_s {
-            errors.push(format!("{name}:{row}:velocity_m_s: {} m/s beyond control.trajectory.max_velocity_m_s = {} m/s", r.velocity_m_s, l.velocity_max_m_s));
+            let hint = if (r.velocity_m_s / 1000.0).abs() <= l.velocity_max_m_s { " (mm/s? the column is in m/s)" } else { "" };
+            errors.push(format!("{name}:{row}:velocity_m_s: {} m/s beyond control.trajectory.max_velocity_m_s = {} m/s{hint}", r.velocity_m_s, l.velocity_max_m_s));
         }
         if let Some(f) = r.force_n {
             if f.abs() > l.force_max_n {
@@ -204,17 +247,20 @@ pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
         let dt = r.t_s - prev.t_s;
         match l.period_s {
             Some(t) if (dt - t).abs() > PERIOD_TOLERANCE * t => errors.push(format!(
-                "{name}:{row}:t_s: a step of {:.3} ms; the drive expects one every {:.3} ms (its stream period): resample the CSV to {:.0} Hz, or serve the simulated drive with --stream-period-s {:.6}",
-                dt * 1e3,
+                "{name}:{row}:t_s: a step of {} ms; the drive expects one every {:.3} ms (its stream period){}: resample the CSV to {:.0} Hz{}",
+                ms_text(dt),
                 t * 1e3,
+                milliseconds_hint(dt, t, t),
                 1.0 / t,
-                dt
+                // Another period is only a fix within what the drive interpolates.
+                if dt >= l.interval_min_s && dt <= l.interval_max_s { format!(", or serve the simulated drive with --stream-period-s {dt:.6}") } else { String::new() }
             )),
             None if dt < l.interval_min_s * (1.0 - PERIOD_TOLERANCE) || dt > l.interval_max_s * (1.0 + PERIOD_TOLERANCE) => errors.push(format!(
-                "{name}:{row}:t_s: a step of {:.3} ms; the drive takes {:.3} … {:.3} ms (position-loop period … control.stream.period_max_s)",
-                dt * 1e3,
+                "{name}:{row}:t_s: a step of {} ms; the drive takes {:.3} … {:.3} ms (position-loop period … control.stream.period_max_s){}",
+                ms_text(dt),
                 l.interval_min_s * 1e3,
-                l.interval_max_s * 1e3
+                l.interval_max_s * 1e3,
+                milliseconds_hint(dt, l.interval_min_s, l.interval_max_s)
             )),
             _ => {}
         }
@@ -251,6 +297,9 @@ pub struct StreamReport {
     /// The drive stopped taking points (faulted, disabled): sending ended
     /// at this row.
     pub aborted_at_row: Option<usize>,
+    /// The user interrupted (Ctrl-C) before this row was sent: the stream
+    /// was ended with `Stop` there.
+    pub interrupted_at_row: Option<usize>,
     /// Following error (position reference − motor position) over the
     /// telemetry records received while streaming, µm.
     pub tracking_rms_um: Option<f64>,
@@ -308,6 +357,13 @@ pub fn send(client: &mut Client, rows: &[Row], paced: bool) -> Result<StreamRepo
 /// `send`; `track`: with the tracking figures, from telemetry the stream
 /// asks for itself (any earlier telemetry setting is replaced, then off).
 pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) -> Result<StreamReport> {
+    send_until(client, rows, paced, track, &std::sync::atomic::AtomicBool::new(false))
+}
+
+/// `send_with`, ending early, with `Stop` as ever, once `interrupt` is set
+/// (a Ctrl-C handler's flag): the drive holds where its reference rests
+/// instead of finding the stream lost.
+pub fn send_until(client: &mut Client, rows: &[Row], paced: bool, track: bool, interrupt: &std::sync::atomic::AtomicBool) -> Result<StreamReport> {
     use servo_core::protocol::TelemetryField as F;
     let fields = (1 << F::PositionReference as u32) | (1 << F::MotorPosition as u32) | (1 << F::Faults as u32);
     let tracking = track && client.ask(Request::Telemetry { fields, rate_hz: TRACKING_RATE_HZ }).is_ok();
@@ -317,14 +373,20 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
     let t0 = Instant::now();
     let mut seq_row = HashMap::new();
     let mut aborted_at_row = None;
+    let mut interrupted_at_row = None;
+    let interrupted = || interrupt.load(std::sync::atomic::Ordering::Relaxed);
     for (i, r) in rows.iter().enumerate() {
+        if interrupted() {
+            interrupted_at_row = Some(i + 1);
+            break;
+        }
         if let Some(u) = client.unsolicited.iter().find(|u| stops_stream(&u.error)) {
             aborted_at_row = Some(seq_row.get(&u.seq).copied().unwrap_or(i + 1));
             break;
         }
         if paced {
             let due = Duration::from_secs_f64((r.t_s - rows[0].t_s).max(0.0));
-            while t0.elapsed() < due {
+            while t0.elapsed() < due && !interrupted() {
                 client.poll(Duration::ZERO)?;
                 let left = due.saturating_sub(t0.elapsed());
                 if left > Duration::from_millis(2) {
@@ -364,6 +426,7 @@ pub fn send_with(client: &mut Client, rows: &[Row], paced: bool, track: bool) ->
         rows: rows.len(),
         sent: seq_row.len(),
         aborted_at_row,
+        interrupted_at_row,
         duration_s: rows.last().map_or(0.0, |r| r.t_s) - rows[0].t_s,
         wall_s,
         refusals: vec![],

@@ -7,6 +7,8 @@ use super::{stream, view};
 use anyhow::{bail, Context, Result};
 use servo_core::ControlParams;
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 pub fn run(c: &mut Client, file: &Path, asap: bool, out: &Path) -> Result<()> {
     let rows = stream::read_csv(file)?;
@@ -23,9 +25,20 @@ pub fn run(c: &mut Client, file: &Path, asap: bool, out: &Path) -> Result<()> {
     let mut limits = stream::StreamLimits::of(&p, period);
     limits.start_reference_m = Some(stream::reference_position(c)?);
     stream::check_rows(&name, &rows, &limits)?;
-    let r = stream::send_with(c, &rows, !asap, true)?;
+    // Ctrl-C ends the stream with a stop (the drive holds) and the report
+    // below; a second Ctrl-C ends the tool at once (exit 1; the drive then
+    // finds the stream lost and stops the rod itself).
+    let interrupt = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register_conditional_shutdown(signal_hook::consts::SIGINT, 1, Arc::clone(&interrupt)).context("installing the Ctrl-C handler")?;
+    let handler = signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&interrupt)).context("installing the Ctrl-C handler")?;
+    let sent = stream::send_until(c, &rows, !asap, true, &interrupt);
+    signal_hook::low_level::unregister(handler);
+    let r = sent?;
     for g in r.grouped() {
         eprintln!("{name}: {g}");
+    }
+    if let Some(row) = r.interrupted_at_row {
+        eprintln!("{name}: interrupted (Ctrl-C) before row {row}; the stream was ended with `cmd stop`: the drive holds where the reference came to rest");
     }
     if let Some(row) = r.aborted_at_row {
         eprintln!("{name}: the drive stopped taking points at row {row}; sending ended there");
@@ -53,6 +66,7 @@ pub fn run(c: &mut Client, file: &Path, asap: bool, out: &Path) -> Result<()> {
         "refusals": r.refusals.len(),
         "refusal_runs": r.grouped(),
         "aborted_at_row": r.aborted_at_row,
+        "interrupted_at_row": r.interrupted_at_row,
         "tracking_rms_um": r.tracking_rms_um,
         "tracking_max_um": r.tracking_max_um,
         "telemetry_records": r.telemetry_records,
@@ -60,6 +74,9 @@ pub fn run(c: &mut Client, file: &Path, asap: bool, out: &Path) -> Result<()> {
     });
     std::fs::write(&summary, serde_json::to_string_pretty(&json)?)?;
     println!("figures → {}", summary.display());
+    if let Some(row) = r.interrupted_at_row {
+        bail!("{name}: interrupted (Ctrl-C) before row {row} of {}: {} points sent; the drive holds", r.rows, r.sent);
+    }
     if !r.faults.is_empty() {
         bail!("{}", stream::fault_advice(&name, &r.faults));
     }

@@ -216,6 +216,16 @@ pub fn run_cli(args: &TrainArgs) -> Result<TrainReport> {
         bail!("--synthetic needs at least 4 runs (two per direction)");
     }
     let ds = load_data(&opts)?;
+    if let (Some(p), super::dataset::ForceSource::Estimate) = (&args.emit_core, ds.force_source) {
+        // The image's model is the load-cell one: a drive runs it on either
+        // input, and uploads are checked against the input they were trained
+        // on; compiled-in estimate weights would escape that check.
+        bail!(
+            "--emit-core {}: {} was logged on the drive's force estimate (load_force_estimate_n); the compiled model is the load-cell model: upload these weights instead (docs/observer.md, \"Without a load cell\")",
+            p.display(),
+            ds.path.display()
+        );
+    }
     let report = train_dataset(&ds, &opts)?;
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let argv: Vec<String> = std::env::args().collect();

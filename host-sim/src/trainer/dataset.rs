@@ -7,6 +7,11 @@
 //! `run_id,direction,time_s,motor_speed_rad_s,nut_speed_m_s,
 //! nut_displacement_m,load_force_n,terminal_error_m`
 //!
+//! The force column's name says which force the drive's observer read
+//! while the data were logged, and so which force input the weights may
+//! run on: `load_force_n` for the load cell, `load_force_estimate_n` for
+//! the drive's current-based estimate (never both; every file alike).
+//!
 //! Optional: `terminal_length_m` and `motor_side_position_m` (the length
 //! model's target; without `terminal_error_m` the error is their
 //! difference), `tilt_swing_deg` and `payload_scale` (the simulator's
@@ -18,6 +23,7 @@
 //! a run with too few samples is refused with the file, the line and the field.
 
 use anyhow::{anyhow, bail, Context, Result};
+pub use servo_core::observer::block::ForceSource;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -39,6 +45,15 @@ pub const INPUT_COLUMNS: [&str; N_INPUTS] =
 /// may instead come from `terminal_length_m − motor_side_position_m`).
 pub const REQUIRED_COLUMNS: [&str; 7] =
     ["run_id", "direction", "time_s", "motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n"];
+
+/// The force column's name for data logged with the observer on `source`
+/// (it stands in for `load_force_n` in [`REQUIRED_COLUMNS`]).
+pub fn force_column(source: ForceSource) -> &'static str {
+    match source {
+        ForceSource::LoadCell => "load_force_n",
+        ForceSource::Estimate => "load_force_estimate_n",
+    }
+}
 
 /// Every column the trainer reads, and writes (NaN where a label is unknown).
 pub const ALL_COLUMNS: [&str; 12] = [
@@ -156,6 +171,8 @@ pub struct Dataset {
     pub path: PathBuf,
     /// Runs sorted by id.
     pub runs: Vec<Run>,
+    /// The force the observer read while the data were logged.
+    pub force_source: ForceSource,
 }
 
 /// Limits a dataset must meet.
@@ -191,9 +208,22 @@ impl Dataset {
             bail!("dataset {} does not exist", path.display());
         };
         let mut runs: BTreeMap<String, Run> = BTreeMap::new();
+        let mut force: Option<(ForceSource, &PathBuf)> = None;
         for f in &files {
-            read_file(f, &mut runs)?;
+            let source = read_file(f, &mut runs)?;
+            match force {
+                Some((s, first)) if s != source => bail!(
+                    "{} line 1: force column '{}', but {} has '{}': data logged on the load cell and on the estimate train different weights",
+                    f.display(),
+                    force_column(source),
+                    first.display(),
+                    force_column(s)
+                ),
+                Some(_) => {}
+                None => force = Some((source, f)),
+            }
         }
+        let force_source = force.map_or(ForceSource::LoadCell, |(s, _)| s);
         let runs: Vec<Run> = runs.into_values().collect();
         if runs.is_empty() {
             bail!("dataset {} holds no sample", path.display());
@@ -211,13 +241,19 @@ impl Dataset {
             }
         }
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string());
-        Ok(Dataset { name, path: path.to_path_buf(), runs })
+        Ok(Dataset { name, path: path.to_path_buf(), runs, force_source })
     }
 
-    /// Builds a dataset from runs made in memory (synthetic data, tests).
+    /// Builds a dataset from runs made in memory (synthetic data, tests),
+    /// their force read from the load cell (see [`Dataset::with_force_source`]).
     pub fn from_runs(name: &str, mut runs: Vec<Run>) -> Dataset {
         runs.sort_by(|a, b| a.id.cmp(&b.id));
-        Dataset { name: name.to_string(), path: PathBuf::from(name), runs }
+        Dataset { name: name.to_string(), path: PathBuf::from(name), runs, force_source: ForceSource::LoadCell }
+    }
+
+    /// The same runs, logged with the observer reading `source`.
+    pub fn with_force_source(self, source: ForceSource) -> Dataset {
+        Dataset { force_source: source, ..self }
     }
 
     /// Writes the dataset as one CSV file in the format [`Dataset::load`] reads.
@@ -225,7 +261,7 @@ impl Dataset {
         // Unknown optional values are left empty.
         let label = |v: f64| if v.is_nan() { String::new() } else { format!("{v:e}") };
         let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
-        w.write_record(ALL_COLUMNS)?;
+        w.write_record(ALL_COLUMNS.map(|c| if c == "load_force_n" { force_column(self.force_source) } else { c }))?;
         for r in &self.runs {
             for i in 0..r.len() {
                 let x = r.inputs[i];
@@ -254,7 +290,8 @@ impl Dataset {
     }
 }
 
-fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<()> {
+/// Reads one file's runs into `runs`; the force source its force column names.
+fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<ForceSource> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
@@ -264,8 +301,17 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<()> {
     let missing = |name: &str| {
         anyhow!("{} line 1: missing column '{}' (header is: {})", path.display(), name, header.iter().collect::<Vec<_>>().join(","))
     };
+    let source = match (find(force_column(ForceSource::LoadCell)), find(force_column(ForceSource::Estimate))) {
+        (Some(_), Some(_)) => bail!(
+            "{} line 1: both 'load_force_n' (load cell) and 'load_force_estimate_n' (the drive's estimate): keep the one the observer read while logging",
+            path.display()
+        ),
+        (None, Some(_)) => ForceSource::Estimate,
+        _ => ForceSource::LoadCell,
+    };
     let mut col = [0usize; REQUIRED_COLUMNS.len()];
     for (slot, name) in col.iter_mut().zip(REQUIRED_COLUMNS) {
+        let name = if name == "load_force_n" { force_column(source) } else { name };
         *slot = find(name).ok_or_else(|| missing(name))?;
     }
     let [c_run, c_dir, c_time, c_w, c_v, c_x, c_f] = col;
@@ -350,7 +396,7 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<()> {
     if data_row == 0 {
         bail!("{}: no data row after the header", path.display());
     }
-    Ok(())
+    Ok(source)
 }
 
 /// How runs are split into training, validation and held-out test runs.

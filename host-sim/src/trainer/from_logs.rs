@@ -10,7 +10,10 @@
 //! - `terminal_position_m`: the linear scale at the rod (the target comes
 //!   from it: terminal error = terminal − motor side);
 //! - `load_force_n` (a load cell) or `load_force_estimate_n` (the drive's
-//!   current-based estimate).
+//!   telemetry: the observer's force input, the load cell or the estimate
+//!   as `control.compensation.force_from_estimate` selected). The weights
+//!   are tied to that input, so a telemetry log needs to be told which it
+//!   was (`--force-source`); a `load_force_n` column is a load cell.
 //!
 //! Rows with a `mode` column other than Running (4) are left out and
 //! counted. The nut's speed and displacement are the motor's through the
@@ -25,7 +28,7 @@
 //! never moves, never reverses, has too few runs of a direction, or whose
 //! load force never reaches the range the model must cover.
 
-use super::dataset::{Dataset, Direction, Run, N_INPUTS};
+use super::dataset::{Dataset, Direction, ForceSource, Run, N_INPUTS};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -46,6 +49,9 @@ pub struct LogOptions {
     pub gap_s: f64,
     pub min_runs_per_direction: usize,
     pub min_samples_per_run: usize,
+    /// The force the drive's observer read while logging (`None`: known
+    /// only from a `load_force_n` column).
+    pub force_source: Option<ForceSource>,
 }
 
 impl LogOptions {
@@ -61,6 +67,7 @@ impl LogOptions {
             gap_s: 0.5,
             min_runs_per_direction: 4,
             min_samples_per_run: 20,
+            force_source: None,
         }
     }
 }
@@ -285,6 +292,7 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
     }
     force_cols.dedup();
     s.load_force_column = force_cols.join(",");
+    let force_source = force_source_of(&force_cols, o.force_source, &files)?;
     let logs_named = files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ");
     if runs.is_empty() {
         bail!(
@@ -342,7 +350,29 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
         );
     }
     let name = files.first().and_then(|f| f.parent()).and_then(|p| p.file_name()).map_or("logs".into(), |n| n.to_string_lossy().into_owned());
-    Ok((Dataset::from_runs(&format!("logs:{name}"), runs), s))
+    Ok((Dataset::from_runs(&format!("logs:{name}"), runs).with_force_source(force_source), s))
+}
+
+/// The force the observer read in the logs: a load cell's own column says
+/// so; the telemetry's `load_force_estimate_n` is whatever the drive had
+/// selected, which only the user can say.
+fn force_source_of(columns: &[String], given: Option<ForceSource>, files: &[PathBuf]) -> Result<ForceSource> {
+    let named = files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ");
+    let load_cell = columns.iter().any(|c| c == "load_force_n");
+    let telemetry = columns.iter().any(|c| c == "load_force_estimate_n");
+    match (load_cell, telemetry, given) {
+        (true, true, _) => bail!("{named}: some logs give 'load_force_n' (a load cell), others 'load_force_estimate_n': log every file with the same force input"),
+        (true, false, Some(ForceSource::Estimate)) => {
+            bail!("{named}: --force-source estimate, but the logs' force column is 'load_force_n', a load cell's")
+        }
+        (true, false, _) => Ok(ForceSource::LoadCell),
+        (false, _, Some(g)) => Ok(g),
+        (false, _, None) => bail!(
+            "{named}: the force column 'load_force_estimate_n' is the observer's force input as the drive had it selected: \
+             say which with --force-source load-cell (control.compensation.force_from_estimate = false, load cell fitted) \
+             or --force-source estimate (force_from_estimate = true); the weights run only on that input"
+        ),
+    }
 }
 
 /// `host-sim dataset-from-logs`.
@@ -369,6 +399,12 @@ pub struct FromLogsArgs {
     /// Runs each direction needs at least.
     #[arg(long, default_value_t = 4)]
     pub min_runs_per_direction: usize,
+    /// The force the drive's observer read while logging: `load-cell`
+    /// (`control.compensation.force_from_estimate = false`, a load cell
+    /// fitted) or `estimate`. Needed for the telemetry's
+    /// `load_force_estimate_n`; the weights are tied to it.
+    #[arg(long, value_enum)]
+    pub force_source: Option<crate::scenario::no_load_cell::ForceSource>,
 }
 
 /// Converts, writes `dataset.csv` and `summary.json`, prints what it found.
@@ -387,11 +423,12 @@ pub fn run_cli(a: &FromLogsArgs) -> Result<LogSummary> {
     }
     o.motion_threshold_m_s = a.motion_threshold_m_s;
     o.min_runs_per_direction = a.min_runs_per_direction.max(1);
+    o.force_source = a.force_source.map(|f| f.core());
     let (ds, s) = convert(&a.logs, &o)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let path = a.out.join("dataset.csv");
     ds.write_csv(&path)?;
-    let summary = serde_json::json!({ "command": "host-sim dataset-from-logs", "dataset": path.display().to_string(), "logs": s });
+    let summary = serde_json::json!({ "command": "host-sim dataset-from-logs", "dataset": path.display().to_string(), "force_source": ds.force_source.name(), "logs": s });
     std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", a.out.join("summary.json").display()))?;
     println!(

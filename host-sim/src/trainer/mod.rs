@@ -345,6 +345,7 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
     };
     let test_physics_baseline = physics_fit.as_ref().map(|f| evaluate::from_residuals(&f.residuals(&test_all), &test_all.length_m));
     let ids = |v: &[usize]| v.iter().map(|&i| ds.runs[i].id.clone()).collect::<Vec<_>>();
+    let model = TrainedModel { force_source: Some(ds.force_source), ..model };
     Ok(TrainReport {
         dataset: opts.dataset_name.clone().unwrap_or_else(|| ds.name.clone()),
         dataset_path: ds.path.display().to_string(),
@@ -415,7 +416,7 @@ fn train_one(
         stop = out.stop_reason;
         diverged = out.diverged;
     }
-    let model = TrainedModel { kind: opts.kind, rbf, params: p, norm: norm.clone() };
+    let model = TrainedModel { kind: opts.kind, rbf, params: p, norm: norm.clone(), force_source: None };
     let train_rmse_m = evaluate::evaluate(&model, train_all).rmse_m;
     let validation_rmse_m = (!val_all.is_empty()).then(|| evaluate::evaluate(&model, val_all).rmse_m);
     let rep = CandidateReport {

@@ -296,6 +296,11 @@ pub struct TrainedModel {
     pub rbf: Rbf,
     pub params: Vec<f64>,
     pub norm: Normaliser,
+    /// The force the observer read in the training data: the weights run
+    /// only on that force input (the drive checks it through the structure
+    /// hash). `None` in a file written before the trainer recorded it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_source: Option<super::dataset::ForceSource>,
 }
 
 impl TrainedModel {

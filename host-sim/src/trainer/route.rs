@@ -143,7 +143,8 @@ pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteO
     let log_s = t.elapsed().as_secs_f64();
     // 2. Dataset.
     let t = Instant::now();
-    let o = LogOptions::new(f64::from(rig.control.drive_train.screw_lead_m));
+    let mut o = LogOptions::new(f64::from(rig.control.drive_train.screw_lead_m));
+    o.force_source = Some(servo_core::protocol::observer::force_source(&rig.control));
     let (ds, ls) = from_logs::convert(&logs, &o)?;
     let data = out.join("dataset").join("dataset.csv");
     std::fs::create_dir_all(out.join("dataset"))?;
@@ -165,10 +166,10 @@ pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteO
     opts.commissioned = true;
     opts.store = Some(store.clone());
     let (addr, stop, thread) = drive::spawn_local(opts)?;
-    let weights = obs::read_model(&model_dir.join("model.json"))?;
+    let (weights, source) = obs::read_model_file(&model_dir.join("model.json"))?;
     let uploaded = (|| -> Result<_> {
         let mut c = Client::connect(&Endpoint::Tcp(addr.to_string()))?;
-        obs::upload(&mut c, &weights)
+        obs::upload(&mut c, &weights, source)
     })();
     stop.store(true, Ordering::Relaxed);
     thread.join().map_err(|_| anyhow!("the simulated drive's thread panicked"))??;

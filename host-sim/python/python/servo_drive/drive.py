@@ -99,7 +99,7 @@ class Telemetry:
     def __init__(self, drive: "Drive", fields: Sequence[str], rate_hz: int, seconds: Optional[float]) -> None:
         self._drive = drive
         self._buf: List[Tuple[float, Dict[str, float]]] = []
-        self._end = None if seconds is None else time.monotonic() + seconds
+        self._end = None if seconds is None else time.monotonic() + _seconds("seconds", seconds)
         self._open = True
         _call(drive._n.telemetry_start, list(fields), int(rate_hz))
 
@@ -145,12 +145,14 @@ class Drive:
     @classmethod
     def tcp(cls, address: str, timeout_s: float = 2.0) -> "Drive":
         """Connects to a drive at ``host:port`` (``host-sim drive serve --listen``)."""
+        timeout_s = _seconds("timeout_s", timeout_s)
         return cls(_call(_native.NativeDrive, "tcp", address, 115_200, timeout_s))
 
     @classmethod
     def serial(cls, port: str, baud: int = 115_200, timeout_s: float = 2.0) -> "Drive":
         """Connects to a board on a serial port (e.g. ``/dev/ttyACM0``, the ST-LINK's
         virtual COM port)."""
+        timeout_s = _seconds("timeout_s", timeout_s)
         return cls(_call(_native.NativeDrive, "serial", port, int(baud), timeout_s))
 
     def close(self) -> None:
@@ -170,7 +172,7 @@ class Drive:
 
     @timeout_s.setter
     def timeout_s(self, t: float) -> None:
-        _call(setattr, self._n, "timeout_s", float(t))
+        _call(setattr, self._n, "timeout_s", _seconds("timeout_s", t))
 
     # ---- who and how ----------------------------------------------------------------
     def info(self) -> Info:
@@ -291,12 +293,26 @@ class Drive:
         """Moves to ``position_m`` on the drive's jerk-limited profile. Returns
         ``{"outcome": "accepted" | "clamped_to_stroke", "position_m": ...}``; ``wait``:
         until within ``tolerance_m`` and still."""
+        # Refused here rather than clamped by the drive: a target typed in
+        # millimetres would otherwise send the rod to the end of the stroke.
+        self._within_stroke("position_m", f"move({position_m!r})", float(position_m))
         r = self._command("move", position_m)
         if wait:
             target = r["position_m"] if r["position_m"] is not None else position_m
             self._wait(lambda s: abs(s.position_m - target) <= tolerance_m and abs(s.speed_rad_s) < 1.0,
                        timeout_s, f"the move to {target} m")
         return r
+
+    def _within_stroke(self, field: str, what: str, target_m: float) -> None:
+        if not math.isfinite(target_m):
+            return  # the command's own check names it
+        lo, hi = float(self.get("limits.stroke_min_m")), float(self.get("limits.stroke_max_m"))
+        if not lo <= target_m <= hi:
+            hint = ""
+            if lo <= target_m / 1000 <= hi:
+                hint = f" (millimetres? positions are in metres: {target_m / 1000} m)"
+            raise InputError(f"{what}: the target {target_m} m is outside the stroke {lo} … {hi} m "
+                             f"(control.limits.stroke_min_m, stroke_max_m){hint}; nothing was sent", field=field)
 
     def jog(self, distance_m: float) -> Dict[str, Any]:
         """Moves by ``distance_m`` from the present position."""
@@ -395,7 +411,7 @@ class Drive:
             if not isinstance(v, (int, np.integer)) or not lo <= v <= 65535:
                 raise InputError(f"`{name}` = {v!r}: an integer {lo} … 65535 is needed", field=name)
         names, dt, trig, values = _call(self._n.capture, list(signals), int(samples), int(decimation),
-                                        int(pre_trigger), trigger, float(wait_s))
+                                        int(pre_trigger), trigger, _seconds("wait_s", wait_s))
         return Capture(names=list(names), dt_s=dt, trigger_index=trig, values=np.array(values, dtype=np.float64))
 
     def _test(self, kind: str, target: str, amplitude: float, duration_s: float,
@@ -451,3 +467,14 @@ def paper_reference(rig: Union[str, os.PathLike, None] = None) -> Tuple[np.ndarr
     streams): (t_s, position_m, velocity_m_s)."""
     t, x, v = _call(_native.paper_reference, None if rig is None else os.fspath(rig))
     return np.array(t), np.array(x), np.array(v)
+
+
+def _seconds(name: str, value: Any) -> float:
+    """A time argument: finite, above zero, at most a day (s)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"`{name}` = {value!r}: a number of seconds is needed", field=name) from None
+    if not (math.isfinite(v) and 0 < v <= 86_400):
+        raise InputError(f"`{name}` = {value!r}: a time above 0 and at most a day (86400 s) is needed", field=name)
+    return v
