@@ -110,6 +110,10 @@ fn csv_mistakes_are_named_by_file_row_and_field() {
     let mm_s: Vec<_> = (0..3).map(|k| row(k as f64 * 1e-3, 0.25 + 0.05 * k as f64 * 1e-3, 50.0)).collect();
     let e = stream::check_rows("mms.csv", &mm_s, &limits).unwrap_err().to_string();
     assert!(e.contains("mms.csv:1:velocity_m_s") && e.contains("mm/s? the column is in m/s"), "{e}");
+    // A velocity column in mm/s on a slow move: the steps disagree by 1000 ×.
+    let slow: Vec<_> = (0..3).map(|k| row(k as f64 * 1e-3, 0.25 + 0.05 * k as f64 * 1e-3, 50.0 * (k.min(1) as f64))).collect();
+    let e = stream::check_rows("slow.csv", &slow, &limits).unwrap_err().to_string();
+    assert!(e.contains("slow.csv:3:velocity_m_s: the position step") && e.contains("(mm/s? the column is in m/s)"), "{e}");
     let ms: Vec<_> = (0..3).map(|k| row(k as f64, 0.25, 0.0)).collect();
     let e = stream::check_rows("ms.csv", &ms, &limits).unwrap_err().to_string();
     assert!(e.contains("ms.csv:2:t_s") && e.contains("t_s in milliseconds?") && !e.contains("--stream-period-s"), "{e}");
@@ -177,4 +181,24 @@ fn a_parameter_file_with_a_typo_is_refused_naming_the_path_and_the_likely_one() 
     let p = d.join("ok.toml");
     write(&p, "[control.speed_pi]\nkp = 0.3\n");
     assert_eq!(read_leaves(&p).unwrap().len(), 1);
+}
+
+#[test]
+fn a_simulated_drive_started_outside_its_stroke_or_rates_is_refused_not_a_panic() {
+    for (args, says) in [
+        (&["--initial-position-m", "10"][..], "--initial-position-m 10: outside the rig's stroke"),
+        (&["--initial-position-m", "250"], "millimetres? positions are in metres: 0.25 m"),
+        (&["--stream-period-s", "0.5"], "--stream-period-s 0.5: the drive interpolates streams at"),
+        (&["--stream-period-s", "1e-6"], "--stream-period-s 0.000001"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["drive", "serve", "--listen", "127.0.0.1:0", "--pace", "fast", "--commissioned"])
+            .args(args)
+            .env_remove("RUST_BACKTRACE")
+            .output()
+            .unwrap();
+        let text = said(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
 }

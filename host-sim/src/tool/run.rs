@@ -16,6 +16,7 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
     match a.cmd {
         DriveCmd::Serve { listen, params, pace, store, commissioned, initial_position_m, stream_period_s } => {
             let rig = RigConfig::load_or_nominal(params.as_ref())?;
+            check_serve(&rig, initial_position_m, stream_period_s)?;
             let mut o = DriveOptions::new(rig);
             o.pace = pace;
             o.store = store;
@@ -191,6 +192,27 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
         }
         DriveCmd::Serve { .. } | DriveCmd::Log { .. } | DriveCmd::BenchAsap { .. } | DriveCmd::BenchStream { .. } | DriveCmd::BenchStreamLoss { .. } | DriveCmd::BenchWatch { .. } => {
             bail!("not a command for a connected drive")
+        }
+    }
+    Ok(())
+}
+
+/// `serve`'s options against the rig: the rod starts within the stroke, and
+/// a stream period is one the drive interpolates.
+fn check_serve(rig: &RigConfig, initial_position_m: f64, stream_period_s: Option<f64>) -> Result<()> {
+    let l = &rig.control.limits;
+    let (lo, hi) = (f64::from(l.stroke_min_m), f64::from(l.stroke_max_m));
+    if !(lo..=hi).contains(&initial_position_m) {
+        bail!(
+            "--initial-position-m {initial_position_m}: outside the rig's stroke {lo} … {hi} m (control.limits.stroke_min_m, stroke_max_m){}",
+            super::moves::millimetre_hint(initial_position_m, lo, hi)
+        );
+    }
+    if let Some(t) = stream_period_s {
+        let (fastest, slowest) = (f64::from(rig.control.position_period_s()), f64::from(rig.control.stream.period_max_s));
+        let tol = super::stream::PERIOD_TOLERANCE;
+        if t < fastest * (1.0 - tol) || t > slowest * (1.0 + tol) {
+            bail!("--stream-period-s {t}: the drive interpolates streams at {fastest} … {slowest} s per point (the position-loop period … control.stream.period_max_s)");
         }
     }
     Ok(())

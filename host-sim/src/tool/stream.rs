@@ -268,8 +268,14 @@ pub fn check_rows(name: &str, rows: &[Row], l: &StreamLimits) -> Result<()> {
             let step = (r.position_m - prev.position_m) / dt;
             let mean = 0.5 * (r.velocity_m_s + prev.velocity_m_s);
             if (step - mean).abs() > VELOCITY_AGREEMENT_M_S + VELOCITY_AGREEMENT_REL * mean.abs() {
+                // The column in mm/s agrees with the steps once read as such.
+                let hint = if (step - mean / 1000.0).abs() <= VELOCITY_AGREEMENT_M_S * 1e-3 + VELOCITY_AGREEMENT_REL * (mean / 1000.0).abs() {
+                    " (mm/s? the column is in m/s)"
+                } else {
+                    ""
+                };
                 errors.push(format!(
-                    "{name}:{row}:velocity_m_s: the position step from row {} is {:.4} m/s ({:.3} mm in {:.3} ms), the velocity column says {:.4} m/s (mean of the two rows)",
+                    "{name}:{row}:velocity_m_s: the position step from row {} is {:.4} m/s ({:.3} mm in {:.3} ms), the velocity column says {:.4} m/s (mean of the two rows){hint}",
                     row - 1,
                     step,
                     (r.position_m - prev.position_m) * 1e3,
