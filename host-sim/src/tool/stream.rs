@@ -145,8 +145,9 @@ pub const PERIOD_TOLERANCE: f64 = 0.02;
 /// shipped rig (fast-paced simulated drive, 0.5 s at the first point's
 /// velocity): a 0.079 m/s start gives 596 µm of following error, 0.01 m/s
 /// 56 µm, 0.005 m/s 27 µm; a first point 1 mm from the reference gives
-/// about 1 mm, 35 µm gives 80 µm, 15 µm gives 24 µm. The two bounds below
-/// keep the start within the stream's 50 µm following bound together.
+/// 1028 µm, 0.5 mm 529 µm, 0.1 mm 156 µm: 1.0–1.6 µm per µm of offset;
+/// at 1.6, 10 µm would give 16 µm (not measured). The two bounds below keep the start
+/// within the stream's 50 µm following bound together.
 pub const START_VELOCITY_MAX_M_S: f64 = 0.005;
 pub const START_OFFSET_MAX_M: f64 = 10e-6;
 /// Following error per m/s of a start from rest, s (the 0.079 m/s case).
