@@ -164,7 +164,7 @@ fn every_allowed_transition_is_reached_and_no_other_is_asked_for() {
         assert_eq!(b.mode(), Mode::Disabled, "{:?}", b.faults());
         b.cmd(Command::Enable);
         b.run(4_000);
-        assert_eq!(b.mode(), Mode::Running);
+        assert_eq!(b.mode(), Mode::Running, "{:?}", b.faults());
         b.cmd(Command::Home);
         assert_eq!(b.mode(), Mode::Homing);
         b.cmd(Command::Stop);
@@ -187,6 +187,7 @@ fn every_allowed_transition_is_reached_and_no_other_is_asked_for() {
         b.clear();
         b.cmd(Command::Enable);
         b.run(4_000);
+        assert_eq!(b.mode(), Mode::Running, "{:?}", b.faults());
         b.nan();
         assert_eq!(b.mode(), Mode::Fault);
     }, Setup::Commissioned);

@@ -59,6 +59,21 @@ struct Outcome {
     /// channel's held-out gap: the same held-out experiment run without
     /// the events leaves the nominal's own floor (weighted alike), %.
     ceiling_primary_pct: Option<f64>,
+    /// The floor (the held-out experiment without the events, nominal
+    /// residual, primary channel) and the share of its energy that is
+    /// sensor noise: 1 − (the floor with exact sensors / the floor)², %.
+    floor_primary: Option<f64>,
+    floor_noise_share_pct: Option<f64>,
+    /// How much of the floor a fit on a clean reference removes: the tool
+    /// on the training and held-out experiments without the events, its
+    /// library stack and its re-fit of the rig's parameters, held-out
+    /// primary-channel shrink (of that diagnosis's primary channel), %.
+    floor_stack_pct: Option<f64>,
+    floor_refit_pct: Option<f64>,
+    /// The primary-channel shrink of the gap above the floor: the RMS
+    /// shrink of `sqrt(gap² − floor²)`, the part of the gap the events add
+    /// (force and floor are independent, so their energies add), %.
+    above_floor_shrink_pct: Option<f64>,
     train_fit_torque_pct: Option<f64>,
     /// Wrong-rig truths: the parameter and its factor, the re-fitted
     /// parameters beyond tolerance, whether the wrong one is among them.
@@ -150,6 +165,18 @@ fn run_case(spec: Spec) -> Outcome {
         }
         o.train_fit_torque_pct = s.channels.iter().find(|c| c.channel == "torque").map(|c| c.fit_train_pct);
         o.ceiling_primary_pct = ceiling(&s.primary_channel, g, &d.nominal);
+        if let Some((gn, fl, fx)) = floors(&s.primary_channel, g, &d.nominal) {
+            o.floor_primary = Some(fl);
+            o.floor_noise_share_pct = Some(100.0 * (1.0 - (fx / fl).powi(2)));
+            let after = gn * (1.0 - s.verdict.explained_pct / 100.0);
+            let above = |x: f64| (x * x - fl * fl).max(0.0).sqrt();
+            o.above_floor_shrink_pct = (gn > fl).then(|| shrink(above(gn), above(after)));
+        }
+        let tilt = Physics::from_rig(&nominal_rig()).tilt_deg;
+        if let Ok(c) = diagnose_with(&g.train_clean, Some(&g.held_clean), None, physics(&nominal_rig()), tilt, &Options::default()) {
+            o.floor_stack_pct = Some(c.summary.gap_shrink_stack_pct);
+            o.floor_refit_pct = c.summary.refit.as_ref().map(|r| r.primary_shrink_pct);
+        }
     };
     let d = match spec {
         Spec::Force(timing, seed, factor) => {
@@ -243,6 +270,21 @@ fn ceiling(primary: &str, g: &GapLogs, nominal: &Nominal) -> Option<f64> {
     Some(shrink(gap_of(&g.held)?, gap_of(&g.held_clean)?))
 }
 
+/// The held-out log's nominal gap on the primary channel, the floor (the
+/// same experiment without the events) and the floor with exact sensors.
+fn floors(primary: &str, g: &GapLogs, nominal: &Nominal) -> Option<(f64, f64, f64)> {
+    let c = CHANNELS.iter().position(|x| *x == primary)?;
+    let tilt = Physics::from_rig(&nominal_rig()).tilt_deg;
+    let mut w = [0.0; NCH];
+    w[c] = 1.0;
+    let gap_of = |log| {
+        let segs = build_segments(log, nominal, tilt).ok()?;
+        let refs: Vec<_> = segs.iter().collect();
+        Some(fit::gap(&refs, None, &w))
+    };
+    Some((gap_of(&g.held)?, gap_of(&g.held_clean)?, gap_of(&g.held_clean_exact)?))
+}
+
 fn pct(a: usize, b: usize) -> f64 {
     if b == 0 {
         f64::NAN
@@ -264,6 +306,18 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
     let shr_capped = force.iter().filter(|o| !(o.verdict == "disturbance" && o.explained_pct >= 70.0) && o.ceiling_primary_pct.is_some_and(|c| c < 70.0)).count();
     let shr_ceiling = force.iter().filter(|o| o.ceiling_primary_pct.is_some_and(|c| c >= 70.0)).count();
     let shr_of_reachable = force.iter().filter(|o| o.verdict == "disturbance" && o.explained_pct >= 70.0 && o.ceiling_primary_pct.is_some_and(|c| c >= 70.0)).count();
+    // The disturbance's share of the gap the events add (above the floor).
+    let shr_above = force.iter().filter(|o| o.verdict == "disturbance" && o.above_floor_shrink_pct.is_some_and(|x| x >= 70.0)).count();
+    let mut noise: Vec<f64> = force.iter().filter_map(|o| o.floor_noise_share_pct).collect();
+    noise.sort_by(f64::total_cmp);
+    let noise_range = format!("{:.0}–{:.0} % (median {:.0} %)", noise.first().copied().unwrap_or(f64::NAN), noise.last().copied().unwrap_or(f64::NAN), noise.get(noise.len() / 2).copied().unwrap_or(f64::NAN));
+    let range = |v: Vec<f64>| {
+        let mut v = v;
+        v.sort_by(f64::total_cmp);
+        format!("{:.0}–{:.0} %", v.first().copied().unwrap_or(f64::NAN), v.last().copied().unwrap_or(f64::NAN))
+    };
+    let floor_stack = range(force.iter().filter_map(|o| o.floor_stack_pct).collect());
+    let floor_refit = range(force.iter().filter_map(|o| o.floor_refit_pct).collect());
     let neg_fit = force.iter().filter(|o| o.train_fit_torque_pct.is_some_and(|f| f < 0.0)).count();
     let wr = fam("wrong_rig");
     let wr_ok = wr.iter().filter(|o| o.verdict == "rig_mismatch" && o.wrong_param_refitted == Some(true)).count();
@@ -289,6 +343,10 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "force_ceiling_ge_70_cases": shr_ceiling,
         "force_primary_shrink_ge_70_where_ceiling_ge_70": format!("{shr_of_reachable}/{shr_ceiling}"),
         "force_misses_with_ceiling_below_70": shr_capped,
+        "force_above_floor_shrink_ge_70_pct": pct(shr_above, n_f),
+        "force_floor_noise_share": noise_range,
+        "force_floor_removed_by_clean_stack": floor_stack,
+        "force_floor_removed_by_clean_refit": floor_refit,
         "force_cases_training_fit_below_zero": neg_fit,
         "wrong_rig_cases": wr.len(),
         "wrong_rig_verdict_rig_mismatch_with_param_pct": pct(wr_ok, wr.len()),
@@ -302,14 +360,14 @@ fn summarize(out: &[Outcome], title: &str, wall_s: f64) -> (serde_json::Value, S
         "wall_s": wall_s,
         "outcomes": out,
     });
-    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f} ({shr_of_reachable}/{shr_ceiling} of those whose ceiling — the same run without the events — is ≥ 70 %; {shr_capped} misses have a ceiling under 70 %); training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
-    let _ = writeln!(rep, "| case | seed | verdict | explained % (ceiling) | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut rep = format!("# {title}\n\n{} cases, wall {wall_s:.1} s. Force truths: verdict disturbance {dist}/{n_f} (free {}, synced {}, long step {}), level within 20 % {lvl}/{n_f}, event times within 5 ms {tim}/{n_f}, primary shrink ≥ 70 % {shr}/{n_f} ({shr_of_reachable}/{shr_ceiling} of those whose ceiling — the same run without the events — is ≥ 70 %; {shr_capped} misses have a ceiling under 70 %), of the gap above the floor ≥ 70 % {shr_above}/{n_f}, sensor noise's share of the floor's energy {noise_range}, floor removed by a library stack fitted on a clean reference {floor_stack}, by a re-fit of the rig's parameters {floor_refit}; training Fit < 0 in {neg_fit}. Wrong rig file: rig mismatch with the parameter {wr_ok}/{}; with force events both found {wrf_ok}/{}. Training = reference: disturbance {tr_ok}/{}. Quiet nominal rig (false alarms): something named {quiet_named}/{}. Wrong library effect named: {wrong_lib}/{}.\n\n", out.len(), by_timing("Free"), by_timing("Synced"), by_timing("LongStep"), wr.len(), wrf.len(), tr.len(), quiet.len(), out.len());
+    let _ = writeln!(rep, "| case | seed | verdict | explained % (ceiling; above floor; floor noise %) | factor | level true / est N (err %) | timing err ms (≤5 ms %) | train Fit torque % | refitted | locked | gates |\n|---|---|---|---|---|---|---|---|---|---|---|");
     let f1 = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.1}"));
     for o in out {
         let _ = writeln!(
             rep,
-            "| {} | {} | {} | {:.1} ({}) | {} | {} / {} ({}) | {} ({}) | {} | {} {} | {} | {} |",
-            o.case, o.seed, o.verdict, o.explained_pct, f1(o.ceiling_primary_pct), f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
+            "| {} | {} | {} | {:.1} ({}; {}; {}) | {} | {} / {} ({}) | {} ({}) | {} | {} {} | {} | {} |",
+            o.case, o.seed, o.verdict, o.explained_pct, f1(o.ceiling_primary_pct), f1(o.above_floor_shrink_pct), f1(o.floor_noise_share_pct), f1(o.factor), f1(o.level_true_n), f1(o.level_est_n), f1(o.level_err_pct),
             f1(o.timing_err_ms), f1(o.edges_within_5ms_pct), f1(o.train_fit_torque_pct), o.refitted.join("; "),
             o.refit_primary_pct.map_or(String::new(), |r| format!("(re-fit {r:.1} %, halves {:?}, stable {:?})", o.refit_halves_pct.map(|h| (h.0.round(), h.1.round())), o.refit_stable)),
             o.disturbance_locked.map_or("–", |b| if b { "yes" } else { "no" }), o.gates.join(", ")

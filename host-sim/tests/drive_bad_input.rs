@@ -110,6 +110,10 @@ fn csv_mistakes_are_named_by_file_row_and_field() {
     let mm_s: Vec<_> = (0..3).map(|k| row(k as f64 * 1e-3, 0.25 + 0.05 * k as f64 * 1e-3, 50.0)).collect();
     let e = stream::check_rows("mms.csv", &mm_s, &limits).unwrap_err().to_string();
     assert!(e.contains("mms.csv:1:velocity_m_s") && e.contains("mm/s? the column is in m/s"), "{e}");
+    // A velocity column in mm/s on a slow move: the steps disagree by 1000 ×.
+    let slow: Vec<_> = (0..3).map(|k| row(k as f64 * 1e-3, 0.25 + 0.05 * k as f64 * 1e-3, 50.0 * (k.min(1) as f64))).collect();
+    let e = stream::check_rows("slow.csv", &slow, &limits).unwrap_err().to_string();
+    assert!(e.contains("slow.csv:3:velocity_m_s: the position step") && e.contains("(mm/s? the column is in m/s)"), "{e}");
     let ms: Vec<_> = (0..3).map(|k| row(k as f64, 0.25, 0.0)).collect();
     let e = stream::check_rows("ms.csv", &ms, &limits).unwrap_err().to_string();
     assert!(e.contains("ms.csv:2:t_s") && e.contains("t_s in milliseconds?") && !e.contains("--stream-period-s"), "{e}");

@@ -79,7 +79,9 @@ impl Controller {
         // step exceeds the circle above about 11.8 A), not the back-EMF
         // circle: narrowing there would clamp the speed integrator's preset
         // to the current flowing in that first period and throw the hold away.
-        if self.limits.contains(LimitFlags::VOLTAGE) && self.mode != Mode::Preloading {
+        // The same holds for the hold on the half-turned angle after a torque
+        // verdict: the current reverses from the wrong angle's push.
+        if self.limits.contains(LimitFlags::VOLTAGE) && self.mode != Mode::Preloading && !self.torque_watch.turned() {
             let reachable = self.current_dq.q.abs() + VOLTAGE_LIMITED_Q_MARGIN_A;
             lo = crate::math::max(lo, -reachable);
             hi = crate::math::min(hi, reachable);

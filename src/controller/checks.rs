@@ -5,7 +5,7 @@ use super::Controller;
 use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
-use crate::protection::FaultSet;
+use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
@@ -24,9 +24,27 @@ impl Controller {
     /// Latches `f`; new faults get their reaction.
     #[inline(never)]
     pub(super) fn raise(&mut self, f: FaultSet) {
+        if !self.latch(f) {
+            return;
+        }
+        if !self.faults.only_controlled_stop() {
+            self.switch_off();
+            return;
+        }
+        match self.mode {
+            Mode::Running | Mode::Homing | Mode::Preloading => self.begin_stop(),
+            // Already decelerating to rest.
+            Mode::Stopping | Mode::Braking => {}
+            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.set_mode(Mode::Fault),
+        }
+    }
+
+    /// Records `f` without its reaction; false if nothing in it is new.
+    #[inline(never)]
+    fn latch(&mut self, f: FaultSet) -> bool {
         let new = f.difference(self.faults);
         if new.is_empty() {
-            return;
+            return false;
         }
         self.faults.insert(new);
         // A fault ends a test and triggers a capture armed for it.
@@ -36,7 +54,14 @@ impl Controller {
         self.forget_position(new);
         // A failed start-up step is not retried by a later `StartUp` step.
         self.start_up_sequence = false;
-        if !self.faults.only_controlled_stop() {
+        true
+    }
+
+    /// The bridge-off reaction: short-circuit braking through the brake's
+    /// engage time where the power stage is still trusted, then off.
+    #[inline(never)]
+    fn switch_off(&mut self) {
+        {
             let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
                 && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
             // Short-circuit braking bridges the brake's engage time, where
@@ -47,13 +72,6 @@ impl Controller {
                 0
             };
             self.set_mode(Mode::Fault);
-            return;
-        }
-        match self.mode {
-            Mode::Running | Mode::Homing | Mode::Preloading => self.begin_stop(),
-            // Already decelerating to rest.
-            Mode::Stopping | Mode::Braking => {}
-            Mode::Disabled | Mode::Calibrating | Mode::Aligning | Mode::Fault => self.set_mode(Mode::Fault),
         }
     }
 
@@ -234,6 +252,79 @@ impl Controller {
         present
     }
 
+    /// From enable until the loops first hold the rod still: the motor side
+    /// must not leave its command against the torque asked of it.
+    #[inline(never)]
+    fn watch_torque(&mut self, x: f32) {
+        let holding_turned = self.mode == Mode::Braking && self.torque_watch.turned();
+        if !(matches!(self.mode, Mode::Running | Mode::Preloading) || holding_turned) {
+            self.torque_watch.disarm();
+            return;
+        }
+        let look = TorqueLook {
+            following_error_m: self.position_command_m - x,
+            position_m: x,
+            q_current_reference_a: self.current_reference.q,
+            preload_current_a: self.hold_current_q_a,
+            stated_load_current_a: super::expected_load_current_q_a(&self.params),
+            speed_m_s: self.speed_rad_s() * self.params.metres_per_rad(),
+            brake_closed: self.mode == Mode::Preloading,
+            may_settle: self.mode == Mode::Running && !self.brake_opening(),
+            moving: self.move_in_progress(),
+            dt_s: self.derived.position_period_s,
+        };
+        match self.torque_watch.update(&self.params, look) {
+            TorqueWatchVerdict::Watching => {}
+            TorqueWatchVerdict::Inconsistent => self.torque_inconsistent(false),
+            TorqueWatchVerdict::Reversed => self.torque_inconsistent(true),
+            // Only a start-up waits on the settle; a user's own enable goes on.
+            TorqueWatchVerdict::NeverSettled if self.start_up_sequence => self.raise(FaultSet::LIFECYCLE_TIMEOUT),
+            TorqueWatchVerdict::NeverSettled => {}
+            // A start-up waiting to home goes on.
+            TorqueWatchVerdict::Settled => self.next_start_up_step(),
+        }
+    }
+
+    /// The torque does not make the motion. With the brake open the load is
+    /// on the motor alone, and short-circuit braking only holds it at a sink
+    /// speed: its torque `1.5 p² ψ² ω / R` grows with the speed, so a load
+    /// `T` sinks at `ω = T R / (1.5 p² ψ²)` (≈ 12 mm/s at rated load on the
+    /// nominal motor, more on a hot winding or a weak magnet) through the
+    /// brake's engage time, most of the half-millimetre budget. A reversed
+    /// torque (the watch saw the rod pulled away by the load and the push
+    /// together) is a known inversion: the angle turned by half a turn makes
+    /// the torque act with q again, exactly for a half-turn error and within
+    /// a quarter turn of it for any error beyond a quarter. The loops hold
+    /// with it while the brake closes (`Braking`, the fault latched, the
+    /// brake's engage time running from the verdict), watched as before: if
+    /// the turned angle does no better, the bridge goes off with the short
+    /// circuit. A missing torque (an error near a quarter turn, where the
+    /// half-turned angle makes none either) or a verdict on the closed brake
+    /// switches off at once. The user's stored offset is put back when the
+    /// bridge goes off.
+    #[inline(never)]
+    fn torque_inconsistent(&mut self, reversed: bool) {
+        if self.torque_watch.turned() {
+            // The turned angle did no better: the fault is latched already.
+            self.switch_off();
+            return;
+        }
+        if !(reversed && self.mode == Mode::Running && self.params.brake.fitted) {
+            self.raise(FaultSet::WRONG_DIRECTION);
+            return;
+        }
+        self.latch(FaultSet::WRONG_DIRECTION);
+        let o = self.params.encoder.electrical_offset_rad;
+        self.torque_watch.arm_turned(o);
+        let pi = core::f32::consts::PI;
+        self.params.encoder.electrical_offset_rad = if o > 0.0 { o - pi } else { o + pi };
+        let v = self.speed_rad_s() * self.params.metres_per_rad();
+        self.start_holding(self.hold_current_q_a);
+        self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
+        self.brake_periods = 0;
+        self.set_mode(Mode::Braking);
+    }
+
     /// The stroke means something once homed; homing itself runs to the
     /// stop and backs off from it, beyond the stroke, so the limits act from
     /// the end of homing on.
@@ -281,6 +372,9 @@ impl Controller {
             && self.emf_watch.update(&self.params, self.voltage_dq, self.current_dq, self.derived.position_period_s)
         {
             self.raise(FaultSet::ENCODER_LOST);
+        }
+        if self.torque_watch.watching() {
+            self.watch_torque(x);
         }
         // The stop starts from the measured position: straying from it means
         // the load is winning. The brake must take it before the end stop.

@@ -109,7 +109,7 @@ const HOME_POSITION_MAX_M: f32 = 100.0;
 
 /// Faults after which the electrical offset and the reference are not
 /// trusted any more (the counter may have lost or gained counts).
-const LOSES_POSITION: FaultSet = FaultSet::ENCODER_JUMP.union(FaultSet::ENCODER_LOST).union(FaultSet::WATCHDOG_RESET);
+const LOSES_POSITION: FaultSet = FaultSet::ENCODER_JUMP.union(FaultSet::ENCODER_LOST).union(FaultSet::WATCHDOG_RESET).union(FaultSet::WRONG_DIRECTION);
 
 impl Controller {
     /// Handles one command from thread context.
@@ -330,6 +330,7 @@ impl Controller {
                 let preload = if self.params.brake.fitted { self.hold_current_q_a } else { 0.0 };
                 self.start_holding(preload);
                 self.brake_periods = 0;
+                self.torque_watch.arm();
             }
             _ => return Err(CommandError::Busy),
         }

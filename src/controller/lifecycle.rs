@@ -32,7 +32,9 @@ impl Controller {
                     return;
                 }
             }
-            if matches!(self.mode, Mode::Running | Mode::Preloading) {
+            // Homing moves the rod on purpose: it waits until the loops
+            // have held it still once (the torque watch's verdict).
+            if matches!(self.mode, Mode::Running | Mode::Preloading) && !self.torque_watch.watching() {
                 self.begin_homing();
             }
         } else {
@@ -90,6 +92,7 @@ impl Controller {
                     self.hold_current_q_a = r.current_q_a;
                     self.brake_periods = u32::MAX;
                     self.set_mode(Mode::Running);
+                    self.torque_watch.arm();
                     self.next_start_up_step();
                     let rotor = self.rotor_state();
                     return self.current_period(s, rotor);

@@ -164,6 +164,8 @@ pub struct Controller {
     /// to close (Braking, once the stop ramp is at rest).
     brake_periods: u32,
     open_phase: OpenPhaseMonitor,
+    /// From enable to the first settle: does the torque make the motion?
+    torque_watch: crate::protection::TorqueWatch,
     /// The open-phase check's last verdict (it keeps it through windows
     /// that cannot judge).
     open_phase_present: bool,
@@ -320,6 +322,7 @@ impl Controller {
             count_at_last_speed_tick: 0,
             q_current_limit_a: 0.0,
             open_phase: OpenPhaseMonitor::new(),
+            torque_watch: crate::protection::TorqueWatch::new(),
             open_phase_present: false,
             brake_periods: 0,
             hold_current_q_a: expected_load_current_q_a(&params),

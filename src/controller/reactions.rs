@@ -106,6 +106,10 @@ impl Controller {
     /// Bridge off: loops reset, the command follows the rod.
     #[inline(never)]
     pub(super) fn bridge_off(&mut self) -> PwmCommand {
+        // A hold on the half-turned angle ends here: the user's offset back.
+        if self.torque_watch.turned() {
+            self.params.encoder.electrical_offset_rad = self.torque_watch.end_turn();
+        }
         self.hold_here();
         self.stream.stop();
         self.reset_loops();

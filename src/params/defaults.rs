@@ -240,7 +240,12 @@ impl ControlParams {
         // Catalogue class for a 2.5 N·m spring-applied servo brake (≈2× the
         // 1.1 N·m that holds rated thrust): 50 ms to open, 30 ms to close.
         // Preload: 20 ms is eight speed-loop time constants at 40 Hz.
-        brake: BrakeParams { fitted: true, release_time_s: 0.05, engage_time_s: 0.03, holding_torque_n_m: 2.5, preload_time_s: 0.02 },
+        brake: BrakeParams { fitted: true, release_time_s: 0.05, engage_time_s: 0.03, holding_torque_n_m: 2.5, preload_time_s: 0.02,
+            // 10 µm: the most a release may sag with the right commutation
+            // (the power-up bar; 4.6 µm measured over the rig family), and
+            // early: the short-circuit sink through the brake's 25 ms
+            // engage time (≈ 12 mm/s at rated load) is most of the drop.
+            torque_watch_travel_m: 1.0e-5 },
     };
 }
 

@@ -186,6 +186,7 @@ leaves! {
     brake.engage_time_s,
     brake.holding_torque_n_m,
     brake.preload_time_s,
+    brake.torque_watch_travel_m,
 }
 
 // Offsets fit the table's u16 and every leaf is 4 bytes or less (the

@@ -217,6 +217,11 @@ pub struct BrakeParams {
     /// the brake last closed, or the expected load) this long with the brake
     /// still closed, so the rod does not sag when it lets go.
     pub preload_time_s: f32,
+    /// From enable until the position loop first holds the rod still, the
+    /// motor side may leave its command by at most this while the q
+    /// current pushes back towards it; beyond it the torque does not make
+    /// the motion (a commutation offset error): bridge off, brake closed.
+    pub torque_watch_travel_m: f32,
 }
 
 /// I²t winding protection: a first-order thermal model normalised to the

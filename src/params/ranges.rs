@@ -91,7 +91,10 @@ const fn starts_with(s: &str, prefix: &str) -> bool {
 
 /// The unit class of the leaf at `p` (a `control.` path).
 pub const fn classify(p: &str, kind: ValueKind) -> Unit {
-    let protection = starts_with(p, "control.faults.") || starts_with(p, "control.stream.") || starts_with(p, "control.power_stage.");
+    let protection = starts_with(p, "control.faults.")
+        || starts_with(p, "control.stream.")
+        || starts_with(p, "control.power_stage.")
+        || ends_with(p, "watch_travel_m");
     if starts_with(p, "control.ratings.") {
         return Unit::Rating;
     }

@@ -84,7 +84,9 @@ faults! {
     /// slipped under the commutation test torque or the load alone.
     BRAKE_SLIP = 21 => brake_slip,
     /// The check rotation went the other way: encoder direction or phase
-    /// order reversed.
+    /// order reversed. Also, from enable until the loops first hold the rod
+    /// still, the motor side left its command against the torque asked of
+    /// it (`brake.torque_watch_travel_m`): a commutation offset error.
     WRONG_DIRECTION = 22 => wrong_direction,
     /// The check rotation's size disagrees with `motor.pole_pairs`.
     WRONG_POLE_PAIRS = 23 => wrong_pole_pairs,

@@ -7,12 +7,14 @@
 //! summary record and the classification that reads them.
 
 mod change_points;
+mod cross;
 mod drift;
 mod inputs;
 mod locked;
 mod periodicity;
 
 pub use change_points::*;
+pub use cross::split_across_events;
 pub use drift::*;
 pub use inputs::*;
 pub use locked::*;

@@ -46,6 +46,20 @@ pub struct Gate {
     pub figure: f64,
 }
 
+/// The note that the training log is the reference and the held-out log
+/// is diagnosed alone, cut between its events.
+pub fn training_is_reference_split(log: &Log, heldout: &Log) -> Gate {
+    Gate {
+        kind: "training_is_reference_split".into(),
+        channel: None,
+        message: format!(
+            "the training log `{}` is the reference the nominal was fitted on, so nothing can be trained on it: the held-out log `{}` is diagnosed on its own, cut between its events, alternate pieces training and scoring (the disturbance's choices and every fit made on half its events, scored on the other half)",
+            log.source, heldout.source
+        ),
+        figure: 1.0,
+    }
+}
+
 /// Gates after which no cause is named: the nominal is unsound on what it
 /// was fitted on (`reference_unsound`). The diagnosed log's own fit never
 /// breaks the baseline — a poor or negative Fit there is what a large gap

@@ -1,16 +1,23 @@
 //! Generic structures for what no library effect explains: a pure delay,
 //! a lightly damped resonance, a gain drifting with time, a constant
-//! unmeasured force. Each is a shape with one or two parameters on a grid
-//! and a linear amplitude, fitted on the training remainder of the primary
-//! channel and scored on the held-out remainder, like the library (the
-//! drifting gain, a state of each run, is cross-validated within each part:
-//! `drift`). None is
-//! built from the channel's own measured output: the delay and the drift
-//! act on the channel's *nominal* prediction (from the motion and the
-//! load), the resonance is driven by the nominal thrust (or, on the
-//! position channel, the motor's thrust from the logged current).
+//! unmeasured force, counts lost once. Each is a shape with one or two
+//! parameters on a grid and a linear amplitude, fitted on the training
+//! remainder of the primary channel and scored on the held-out remainder,
+//! like the library (the drifting gain and a count loss, states of each
+//! run, are fitted within each part: `drift`, `count_loss`). None is built
+//! from the channel's own measured output: the delay and the drift act on
+//! the channel's *nominal* prediction (from the motion and the load), the
+//! resonance is the rod side's ringing under the motor's thrust from the
+//! logged current (`resonance`).
 
+mod count_loss;
 mod drift;
+mod overlap;
+mod resonance;
+
+pub use overlap::Basis;
+
+use resonance::rod_mode;
 
 use super::effects::{Effect, MAXP};
 use super::events::Remainder;
@@ -20,23 +27,24 @@ use super::residual::{Nominal, Segment, NCH, POSITION, TORQUE, VOLTAGE};
 /// A generic structure names the remainder when it removes at least this
 /// share of what the stack leaves on its channel, held-out and on training — a
 /// quarter, the bar the remainder's character uses for a structure — and
-/// at least `GENERIC_LEAD` times what the best other class removes.
+/// leads every other class: it removes at least `GENERIC_LEAD` times what
+/// the other removes, or, fitted together with it on the same channel, it
+/// explains what the other does not (`overlap`).
 pub const GENERIC_MIN_PCT: f64 = 25.0;
 pub const GENERIC_LEAD: f64 = 1.5;
 
 /// The generic structure that names the remainder, if one does.
 pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
     let best = fits.first()?;
-    let other = fits
+    let leads = fits
         .iter()
         .filter(|g| g.class != best.class)
-        .map(|g| g.remainder_shrink_pct)
-        .fold(0.0f64, f64::max);
-    (best.refused.is_none()
-        && best.remainder_shrink_pct >= GENERIC_MIN_PCT
-        && best.train_shrink_pct >= GENERIC_MIN_PCT
-        && best.remainder_shrink_pct >= GENERIC_LEAD * other)
-        .then_some(best)
+        .all(|g| best.remainder_shrink_pct >= GENERIC_LEAD * g.remainder_shrink_pct || (g.channel == best.channel && overlap::leads_beyond(best, &g.class)));
+    // Counts lost once are an event of the log they happen in: the
+    // training log need not show one (it is often the healthy reference),
+    // and the held-out one carries its own evidence (`count_loss`).
+    let trained = best.train_shrink_pct >= GENERIC_MIN_PCT || best.class == "count_loss";
+    (best.refused.is_none() && best.remainder_shrink_pct >= GENERIC_MIN_PCT && trained && leads).then_some(best)
 }
 
 /// One generic structure fitted and scored.
@@ -58,6 +66,14 @@ pub struct GenericFit {
     /// Why this fit cannot name the remainder whatever its share (a gain
     /// that does not drift), if it cannot.
     pub refused: Option<String>,
+    /// For each other class fitted on the same channel, fitted together
+    /// with this one: what this one and what the other explain of the
+    /// held-out remainder's energy beyond each other, % (`overlap`).
+    pub beyond_pct: std::collections::BTreeMap<String, [f64; 2]>,
+    /// The fit's regressors on training and held out, while the classes of
+    /// a channel are compared.
+    #[serde(skip)]
+    pub basis: Basis,
 }
 
 /// The channel's nominal prediction (logged signal minus residual).
@@ -66,105 +82,6 @@ fn nominal_pred(s: &Segment, c: usize) -> Vec<f64> {
         (Some(y), Some(r)) => y.iter().zip(r).map(|(y, r)| y - r).collect(),
         _ => vec![0.0; s.len()],
     }
-}
-
-/// What drives a resonance seen on channel `c`: the thrust on the screw.
-fn thrust(s: &Segment, c: usize, nominal: &Nominal) -> Vec<f64> {
-    match (nominal, c) {
-        // The position channel (scale − motor side) is not the current:
-        // the motor's thrust from the logged current drives the frame, as
-        // logged (the smoothed current has lost the band a mode rings in).
-        (Nominal::Physics(p), POSITION) => s.iq_logged.iter().map(|i| p.kt * i / p.k).collect(),
-        (Nominal::Physics(p), _) => s.f_ax.iter().map(|f| f * p.k).collect(),
-        _ => nominal_pred(s, c),
-    }
-}
-
-/// The ringing part `y − u` of `y'' + 2ζω y' + ω² y = ω² u`, `u` held over
-/// each sample step (10 sub-steps, semi-implicit Euler).
-fn ringing(u: &[f64], dt: f64, f_hz: f64, zeta: f64) -> Vec<f64> {
-    let w = std::f64::consts::TAU * f_hz;
-    let h = dt / 10.0;
-    let (mut y, mut v) = (u.first().copied().unwrap_or(0.0), 0.0);
-    u.iter()
-        .map(|uk| {
-            for _ in 0..10 {
-                v += h * (w * w * (uk - y) - 2.0 * zeta * w * v);
-                y += h * v;
-            }
-            y - uk
-        })
-        .collect()
-}
-
-/// `ringing` with a natural frequency that moves with the sample (rad/s
-/// per sample): the rod's axial mode, whose stiffness changes along the
-/// stroke.
-fn ringing_var(u: &[f64], dt: f64, w: &[f64], zeta: f64) -> Vec<f64> {
-    let h = dt / 10.0;
-    let (mut y, mut v) = (u.first().copied().unwrap_or(0.0), 0.0);
-    u.iter()
-        .zip(w)
-        .map(|(uk, wk)| {
-            for _ in 0..10 {
-                v += h * (wk * wk * (uk - y) - 2.0 * zeta * wk * v);
-                y += h * v;
-            }
-            y - uk
-        })
-        .collect()
-}
-
-/// The rig's own axial mode on the position channel: the moving mass on
-/// the drive train's local compliance, `ω = 1/√(m c(x))`, ringing under
-/// the motor's thrust. It is part of the nominal's floor (the rigid-body
-/// nominal leaves it), not an unmodelled resonance: it is fitted first
-/// (damping and a ±25 % frequency scale chosen on training, amplitude
-/// linear) and the generic classes explain what it leaves.
-fn rod_mode(train: &[&Segment], rem_t: &Remainder, held: &[&Segment], rem_h: &Remainder, nominal: &Nominal) -> Option<(Remainder, Remainder)> {
-    let Nominal::Physics(p) = nominal else { return None };
-    let shape = |s: &Segment, scale: f64, zeta: f64| -> Vec<Vec<f64>> {
-        let w: Vec<f64> = s
-            .c_loc
-            .iter()
-            .map(|c| if *c > 0.0 { scale / (p.m_moving * c).sqrt() } else { 0.0 })
-            .collect();
-        if w.iter().any(|x| !x.is_finite() || *x <= 0.0 || *x * s.dt > 0.5) {
-            return vec![vec![0.0]; s.len()];
-        }
-        ringing_var(&thrust(s, POSITION, nominal), s.dt, &w, zeta)
-            .into_iter()
-            .map(|v| vec![v])
-            .collect()
-    };
-    let best = [0.8, 0.9, 1.0, 1.1, 1.25]
-        .into_iter()
-        .flat_map(|sc| [0.05, 0.1, 0.2, 0.3].into_iter().map(move |z| (sc, z)))
-        .map(|(sc, z)| {
-            let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s, sc, z)).collect();
-            let b = lsq(train, rem_t, POSITION, &xt);
-            let after = rms(train, rem_t, POSITION, Some((&xt, &b)));
-            (sc, z, b, after)
-        })
-        .min_by(|a, b| a.3.total_cmp(&b.3))?;
-    let (sc, z, b, _) = best;
-    let sub = |segs: &[&Segment], rem: &Remainder| -> Remainder {
-        segs.iter()
-            .zip(rem)
-            .map(|(s, r)| {
-                let x = shape(s, sc, z);
-                std::array::from_fn(|c| {
-                    let y = r[c].as_ref()?;
-                    Some(if c == POSITION {
-                        y.iter().zip(&x).map(|(a, xi)| a - xi[0] * b.first().copied().unwrap_or(0.0)).collect()
-                    } else {
-                        y.clone()
-                    })
-                })
-            })
-            .collect()
-    };
-    Some((sub(train, rem_t), sub(held, rem_h)))
 }
 
 /// Regressors (one or two per sample) of a class at a grid point.
@@ -215,6 +132,50 @@ fn rms(segs: &[&Segment], rem: &Remainder, c: usize, x: Option<(&[Vec<Vec<f64>>]
     }
 }
 
+/// Fits a class on channel `c`: the grid point (parameters, shape) chosen on
+/// training by what it leaves there, the amplitude fitted there too, then
+/// scored on the held-out remainder; `scale` turns the amplitudes into
+/// named parameters.
+#[allow(clippy::too_many_arguments)] // the two parts and their remainders, as everywhere here
+fn fit_grid(
+    train: &[&Segment],
+    rem_t: &Remainder,
+    held: &[&Segment],
+    rem_h: &Remainder,
+    c: usize,
+    nominal_rms_h: f64,
+    class: &str,
+    grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)>,
+    scale: &dyn Fn(&[f64]) -> Vec<(&'static str, f64)>,
+) -> Option<GenericFit> {
+    let base_t = rms(train, rem_t, c, None);
+    let (params, shape, b, after_t) = grid
+        .into_iter()
+        .map(|(params, shape)| {
+            let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
+            let b = lsq(train, rem_t, c, &xt);
+            let after = rms(train, rem_t, c, Some((&xt, &b)));
+            (params, shape, b, after)
+        })
+        .min_by(|a, b| a.3.total_cmp(&b.3))?;
+    let xh: Vec<Vec<Vec<f64>>> = held.iter().map(|s| shape(s)).collect();
+    let after_h = rms(held, rem_h, c, Some((&xh, &b)));
+    let mut g = GenericFit {
+        class: class.into(),
+        channel: super::residual::CHANNELS[c].into(),
+        primary_shrink_pct: shrink(nominal_rms_h, after_h),
+        remainder_shrink_pct: shrink(rms(held, rem_h, c, None), after_h),
+        train_shrink_pct: shrink(base_t, after_t),
+        ..Default::default()
+    };
+    for (k, v) in params.into_iter().chain(scale(&b)) {
+        g.params.insert(k.into(), v);
+    }
+    let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
+    g.basis = Basis(Some((xt, xh)));
+    Some(g)
+}
+
 /// Fits every generic class on the torque and position channels of the
 /// training remainder and scores each on the held-out remainder against
 /// the nominal's held-out RMS of its channel. Best first.
@@ -258,34 +219,8 @@ pub fn fit(
     }
     let dt = train.first().map_or(1e-3, |s| s.dt);
     let mut out = Vec::new();
-    // Each class: grid of (parameters, shape); the grid point chosen on
-    // training by what it leaves, the amplitude fitted there too.
-    let mut try_class = |class: &str, grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)>, scale: &dyn Fn(&[f64]) -> Vec<(&'static str, f64)>| {
-        let base_t = rms(train, rem_t, c, None);
-        let best = grid
-            .into_iter()
-            .map(|(params, shape)| {
-                let xt: Vec<Vec<Vec<f64>>> = train.iter().map(|s| shape(s)).collect();
-                let b = lsq(train, rem_t, c, &xt);
-                let after = rms(train, rem_t, c, Some((&xt, &b)));
-                (params, shape, b, after)
-            })
-            .min_by(|a, b| a.3.total_cmp(&b.3));
-        let Some((params, shape, b, after_t)) = best else { return };
-        let xh: Vec<Vec<Vec<f64>>> = held.iter().map(|s| shape(s)).collect();
-        let after_h = rms(held, rem_h, c, Some((&xh, &b)));
-        let mut g = GenericFit {
-            class: class.into(),
-            channel: super::residual::CHANNELS[c].into(),
-            primary_shrink_pct: shrink(nominal_rms_h, after_h),
-            remainder_shrink_pct: shrink(rms(held, rem_h, c, None), after_h),
-            train_shrink_pct: shrink(base_t, after_t),
-            ..Default::default()
-        };
-        for (k, v) in params.into_iter().chain(scale(&b)) {
-            g.params.insert(k.into(), v);
-        }
-        out.push(g);
+    let try_class = |class: &str, grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)>, scale: &dyn Fn(&[f64]) -> Vec<(&'static str, f64)>| {
+        fit_grid(train, rem_t, held, rem_h, c, nominal_rms_h, class, grid, scale)
     };
     // A pure delay: the channel's logged output early (k > 0) or late
     // against the motion by k samples: N(t + k dt) − N(t), amplitude ≈ 1.
@@ -303,29 +238,9 @@ pub fn fit(
             (vec![("delay_ms", 1e3 * k as f64 * dt)], shape)
         })
         .collect();
-    try_class("delay", delay_grid, &|b| vec![("amplitude", b.first().copied().unwrap_or(0.0))]);
-    // A lightly damped resonance driven by the thrust, up to a fifth of the
-    // sampling rate.
-    let f_max = (0.2 / dt).min(150.0);
-    let mut res_grid: Vec<(Vec<(&'static str, f64)>, Box<Shape>)> = Vec::new();
-    if f_max > 6.0 {
-        // Steps of 4 % in frequency: a resonance with ζ = 0.02 is 4 % wide.
-        let nf = ((f_max / 5.0f64).ln() / 1.04f64.ln()).ceil() as usize + 1;
-        for j in 0..nf {
-            let f = 5.0 * (f_max / 5.0f64).powf(j as f64 / (nf - 1) as f64);
-            for zeta in [0.01, 0.02, 0.05, 0.1, 0.3] {
-                let nominal = nominal.clone();
-                let shape: Box<Shape> = Box::new(move |s: &Segment| {
-                    ringing(&thrust(s, c, &nominal), s.dt, f, zeta)
-                        .into_iter()
-                        .map(|v| vec![v])
-                        .collect()
-                });
-                res_grid.push((vec![("frequency_hz", f), ("damping_ratio", zeta)], shape));
-            }
-        }
-        try_class("resonance", res_grid, &|b| vec![("gain", b.first().copied().unwrap_or(0.0))]);
-    }
+    out.extend(try_class("delay", delay_grid, &|b| vec![("amplitude", b.first().copied().unwrap_or(0.0))]));
+    // A lightly damped resonance, up to a fifth of the sampling rate.
+    out.extend(resonance::fit(train, rem_t, held, rem_h, nominal, c, nominal_rms_h));
     // A constant unmeasured force: the load offset's regressors on `c`.
     if matches!(nominal, Nominal::Physics(_)) && (c == TORQUE || c == POSITION) {
         let nominal = nominal.clone();
@@ -341,10 +256,14 @@ pub fn fit(
                     .collect()
             }),
         )];
-        try_class("constant_force", cf, &|b| vec![("level_n", b.first().copied().unwrap_or(0.0))]);
+        out.extend(try_class("constant_force", cf, &|b| vec![("level_n", b.first().copied().unwrap_or(0.0))]));
     }
     // A gain drifting with time.
     out.extend(drift::fit(train, rem_t, held, rem_h, c, nominal_rms_h));
+    // Counts lost once: an offset of the scale − motor difference.
+    if c == POSITION {
+        out.extend(count_loss::fit(train, rem_t, held, rem_h, nominal, nominal_rms_h));
+    }
     // A delay short against the motion's time scale is identified by the
     // product of amplitude and shift (`N(t + τ) − N(t) ≈ τ N'`): the grid's
     // shift alone trades against the amplitude, so the delay reported is
@@ -354,6 +273,7 @@ pub fn fit(
         g.params.insert("shape_delay_ms".into(), tau);
         g.params.insert("delay_ms".into(), a * tau);
     }
+    overlap::compare(train, rem_t, held, rem_h, c, &mut out);
     out.sort_by(|a, b| b.primary_shrink_pct.total_cmp(&a.primary_shrink_pct));
     out
 }

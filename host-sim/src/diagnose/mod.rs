@@ -111,14 +111,7 @@ pub fn diagnose_with(
     tilt_default_deg: f64,
     opts: &Options,
 ) -> Result<Diagnosis> {
-    let t0 = std::time::Instant::now();
-    let mut issues = log.issues.clone();
-    if let Some(h) = heldout {
-        issues.extend(h.issues.iter().cloned().map(|mut i| {
-            i.message = format!("held-out log: {}", i.message);
-            i
-        }));
-    }
+    let issues = all_issues(log, heldout);
     if issues.iter().any(|i| i.severity == Severity::Error) {
         let list: Vec<String> = issues
             .iter()
@@ -140,27 +133,56 @@ pub fn diagnose_with(
         // The training log is the reference and the held-out log is
         // another run: nothing can be trained on the reference (the nominal
         // was fitted on it), so the held-out log is diagnosed on its own,
-        // split in time — its first part's events train, the rest's score.
+        // cut between its events: half of them train, the other half score.
         if reference.is_some_and(|r| gates::same_data(log, r))
             && !gates::same_data(h, log)
         {
-            let mut d = diagnose_with(h, None, reference, nominal, tilt_default_deg, opts)?;
-            d.summary.gates.insert(0, gates::Gate {
-                kind: "training_is_reference_split".into(),
-                channel: None,
-                message: format!(
-                    "the training log `{}` is the reference the nominal was fitted on, so nothing can be trained on it: the held-out log `{}` is diagnosed on its own, its events cross-validated in time (the disturbance's choices and every fit made on one part of it, scored on the other)",
-                    log.source, h.source
-                ),
-                figure: 1.0,
-            });
+            let mut d = diagnose_split(h, None, reference, nominal, tilt_default_deg, opts, Split::AcrossEvents)?;
+            d.summary.gates.insert(0, gates::training_is_reference_split(log, h));
             d.summary.verdict.headline = format!(
-                "(Training = reference: the held-out log split in time.) {}",
+                "(Training = reference: the held-out log cross-validated across its events.) {}",
                 d.summary.verdict.headline
             );
             return Ok(d);
         }
     }
+    diagnose_split(log, heldout, reference, nominal, tilt_default_deg, opts, Split::InTime)
+}
+
+/// The issues of the log and the held-out log (marked as such).
+fn all_issues(log: &Log, heldout: Option<&Log>) -> Vec<log::Issue> {
+    let mut issues = log.issues.clone();
+    if let Some(h) = heldout {
+        issues.extend(h.issues.iter().cloned().map(|mut i| {
+            i.message = format!("held-out log: {}", i.message);
+            i
+        }));
+    }
+    issues
+}
+
+/// How a single log is cut into training and held-out parts.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Split {
+    /// Alternate runs, or 60 % / 40 % of one run in time.
+    InTime,
+    /// Between the residual's events, alternate pieces held out
+    /// (`events::split_across_events`), else `InTime`.
+    AcrossEvents,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn diagnose_split(
+    log: &Log,
+    heldout: Option<&Log>,
+    reference: Option<&Log>,
+    nominal: Nominal,
+    tilt_default_deg: f64,
+    opts: &Options,
+    split: Split,
+) -> Result<Diagnosis> {
+    let t0 = std::time::Instant::now();
+    let issues = all_issues(log, heldout);
     let mut segments = residual::build_segments(log, &nominal, tilt_default_deg)?;
     if let Some(h) = heldout {
         for s in &mut segments {
@@ -171,6 +193,15 @@ pub fn diagnose_with(
             s.heldout = true;
         }
         segments.extend(hs);
+    } else if split == Split::AcrossEvents {
+        segments = match events::split_across_events(
+            &segments,
+            disturbance::THRESHOLDS[0],
+            [0.0, disturbance::DETECT_WEIGHT_FLOOR],
+        ) {
+            Some(s) => s,
+            None => split_segments(segments),
+        };
     } else {
         segments = split_segments(segments);
     }

@@ -17,7 +17,10 @@ use super::residual::{CHANNELS, NCH, TORQUE};
 use super::summary::RankEntry;
 
 mod baseline;
+mod library;
 use baseline::{baseline, Baseline};
+use library::{flux_stand_in, group_of};
+pub use library::FLUX_SHARE_OF_GAIN;
 
 /// Share of the held-out gap (primary channel) an explanation must remove
 /// to be called the cause: most of it, with a margin — a library effect
@@ -47,13 +50,6 @@ pub const LIBRARY_TIE_POINTS: f64 = 5.0;
 /// held-out set showed stand-ins at 45–83 % (docs/diagnosis.md); a
 /// closed-world true stack has come within half a point of it.
 pub const ADEQUATE_INPUT_R2_MAX_PCT: f64 = 40.0;
-/// A current-sensor gain `g` read as a torque-constant (flux) change: the
-/// back-EMF falls short of the rig file's by at least this share of the
-/// `g` a flux drop of that size predicts. A sensor gain leaves the
-/// back-EMF alone (it changes only `R i_q`, a few mV); a flux drop lowers
-/// `K_t` and `p ω ψ_f` together (a logged current `1/(1 − δ)` high, a
-/// back-EMF `1 − δ` low).
-pub const FLUX_SHARE_OF_GAIN: f64 = 0.5;
 
 /// What the verdict weighs.
 pub struct Inputs<'a> {
@@ -509,10 +505,11 @@ pub fn decide(i: &Inputs) -> Verdict {
             "No library effect, disturbance or re-fit of the rig's parameters explains most of the held-out gap".to_string()
         };
         v.headline = format!(
-            "{lead}{opening}; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; no other generic class comes within a factor {}), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
+            "{lead}{opening}; the remainder is a **{}** on the {} channel ({params}) — it removes {:.1} % of what the library stack leaves there on the held-out part ({:.1} % on training; it leads every other generic class by a factor {} or by what it explains beyond it when fitted together), {:.1} % of that channel's held-out gap; {REMAINING} {:.1} %. The remainder is {ch} ({why}). Library effects alone: {share_txt}.",
             match g.class.as_str() {
                 "delay" => "pure delay between the channel and the motion",
-                "resonance" => "lightly damped resonance driven by the thrust",
+                "resonance" => "lightly damped resonance between motor and rod",
+                "count_loss" => "loss of counts (one offset that no force explains)",
                 "gain_drift" if g.params.contains_key("gain_per_k") => "gain drifting with the motor temperature",
                 "gain_drift" => "gain drifting with time",
                 "constant_force" => "constant unmeasured force",
@@ -563,44 +560,4 @@ pub fn decide(i: &Inputs) -> Verdict {
         );
     }
     v
-}
-
-/// The top effect and the ranked effects the tool flags indistinguishable
-/// from it (`rank`: held-out predictions correlating > 0.95, or scores
-/// within 1 point, both > 10 %), with their primary-channel shrink.
-fn group_of(ranking: &[RankEntry], top: &str) -> Vec<(String, f64)> {
-    let Some(t) = ranking.iter().find(|r| r.effect == top) else {
-        return Vec::new();
-    };
-    std::iter::once(t)
-        .chain(
-            ranking
-                .iter()
-                .filter(|r| t.indistinguishable_from.contains(&r.effect)),
-        )
-        .map(|r| (r.effect.clone(), r.primary_shrink_pct.max(0.0)))
-        .collect()
-}
-
-/// When the top effect is the current sensor, whether its gain is a
-/// torque-constant (flux) change instead: the held-out back-EMF falls
-/// short as a flux drop of that size predicts (`FLUX_SHARE_OF_GAIN`).
-fn flux_stand_in(ranking: &[RankEntry], top: Option<&str>, k: Option<f64>) -> Option<String> {
-    let t = ranking.first().filter(|r| Some(r.effect.as_str()) == top)?;
-    let g = *t
-        .params
-        .get("gain_error")
-        .filter(|_| t.effect == "current_sensor")?;
-    let k = k?;
-    // The fitted coefficient on `K_t i_q` is the share of the logged
-    // current that makes no torque: a flux drop δ (current 1/(1 − δ) of
-    // the nominal's) fits g = δ and leaves a back-EMF 1 − δ.
-    let delta = g;
-    let deficit = 1.0 - k;
-    (g.abs() > 0.0 && deficit * delta > 0.0 && deficit.abs() >= FLUX_SHARE_OF_GAIN * delta.abs())
-        .then(|| format!(
-            "; current_sensor's gain error {:+.1} % stands in for a torque-constant change: the held-out back-EMF is {k:.3} × the rig file's, as a flux drop of {:.1} % predicts (a sensor gain leaves the back-EMF alone); the magnets' flux, and with it K_t, is lower than the rig file says (warm magnets: −0.12 %/K), which no library effect models",
-            100.0 * g,
-            100.0 * delta
-        ))
 }

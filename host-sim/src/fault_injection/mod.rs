@@ -6,7 +6,9 @@
 //! current got, whether the stroke held, and whether anything became NaN.
 //!
 //! - [`injection`]: what can be injected and when;
+//! - [`scenario`]: a [`Scenario`]: its [`Setup`], injections and [`Expect`];
 //! - [`runner`]: [`run`] a [`Scenario`] into an [`Outcome`];
+//! - [`outcome`]: what a run recorded and the figures read from it;
 //! - [`catalog`]: the scenarios of the reliability table (`docs/reliability.md`),
 //!   shared by the tests (`tests/fault_*.rs`) and `host-sim faults`;
 //! - [`report`]: `summary.json` and the measured table;
@@ -15,8 +17,12 @@
 pub mod catalog;
 pub mod family;
 pub mod injection;
+pub mod outcome;
 pub mod report;
 pub mod runner;
+pub mod scenario;
 
 pub use injection::{CommandAt, Injection, SensorCorruptor, Timed, Window};
-pub use runner::{names, run, CommandRecord, Expect, Outcome, PeriodRecord, Scenario, Setup};
+pub use outcome::{names, CommandRecord, Outcome, PeriodRecord};
+pub use runner::run;
+pub use scenario::{Expect, Scenario, Setup};

@@ -4,7 +4,7 @@
 //! `docs/reliability.md`) and one CSV trace per scenario.
 
 use super::catalog;
-use super::runner::{names, run, Outcome, Scenario};
+use super::{names, run, Outcome, Scenario};
 use crate::config::RigConfig;
 use anyhow::{Context, Result};
 use serde::Serialize;

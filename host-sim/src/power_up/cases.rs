@@ -27,6 +27,14 @@ pub enum Failure {
     HomeSwitchNeverTriggers,
     /// Homing to the hard stop, but the stop is beyond the travel bound.
     HardStopNeverMet,
+    /// A commutation error no check sees: the offset is stored as known
+    /// (`startup.commutation_known`, e.g. kept from before the encoder was
+    /// remounted) and is a quarter electrical turn off, so the motor makes
+    /// no torque. The torque watch must close the brake.
+    OffsetQuarterTurnOff,
+    /// As above, half a turn off: the torque is reversed, and the loops'
+    /// correction drives the rod away.
+    OffsetHalfTurnOff,
 }
 
 impl Failure {
@@ -41,10 +49,20 @@ impl Failure {
             Self::SupplySagDuringCalibration => Some(FaultSet::CALIBRATION_FAILED),
             Self::BrakeSlips => Some(FaultSet::BRAKE_SLIP),
             Self::HomeSwitchNeverTriggers | Self::HardStopNeverMet => Some(FaultSet::HOMING_FAILED),
+            Self::OffsetQuarterTurnOff | Self::OffsetHalfTurnOff => Some(FaultSet::WRONG_DIRECTION),
         }
     }
 
-    pub const ALL: [Self; 8] = [
+    /// The stored commutation offset's error, electrical radians.
+    pub fn offset_error_rad(self) -> Option<f64> {
+        match self {
+            Self::OffsetQuarterTurnOff => Some(0.5 * std::f64::consts::PI),
+            Self::OffsetHalfTurnOff => Some(std::f64::consts::PI),
+            _ => None,
+        }
+    }
+
+    pub const ALL: [Self; 10] = [
         Self::BlockedRotor,
         Self::SwappedPhases,
         Self::WrongPolePairs,
@@ -53,6 +71,8 @@ impl Failure {
         Self::BrakeSlips,
         Self::HomeSwitchNeverTriggers,
         Self::HardStopNeverMet,
+        Self::OffsetQuarterTurnOff,
+        Self::OffsetHalfTurnOff,
     ];
 }
 

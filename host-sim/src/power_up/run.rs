@@ -120,6 +120,10 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
     for _ in 0..seconds(&cl, IDLE_BEFORE_START_S) {
         step(&mut cl);
     }
+    let mut stored_offset_rad = None;
+    if let Some(error_rad) = case.failure.offset_error_rad() {
+        stored_offset_rad = Some(store_wrong_offset(&mut cl, f64::from(rig.plant.motor.pole_pairs), error_rad).map_err(|e| anyhow!("{}: {e}", case.name))?);
+    }
     let nominal_bus = rig.plant.inverter.nominal_bus_voltage_v;
     let x0 = cl.plant.state().x_rod_m;
     let t_start = cl.time_s();
@@ -158,8 +162,10 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
             fault_at = Some((cl.time_s(), x));
         }
         // A fall: before homing (which moves the rod down on purpose), or
-        // after a fault.
+        // after a fault; for a commutation error no check saw, from the
+        // start (the fall before the verdict counts).
         match fault_at {
+            _ if case.failure.offset_error_rad().is_some() => drop = drop.max(x0 - x),
             Some((_, xf)) => drop = drop.max(xf - x),
             None if !homing_seen => drop = drop.max(x0 - x),
             None => {}
@@ -198,8 +204,32 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
         rotation_ratio: f64::from(c.commutation_report().rotation_ratio),
     };
     result.verdict = judge(&result, case.failure.expected_fault(), c.faults());
+    // The drive may hold on a corrected angle while the brake closes; the
+    // user's stored offset must come back unchanged.
+    if let Some(stored) = stored_offset_rad {
+        let now = c.params().encoder.electrical_offset_rad;
+        if result.verdict == "ok" && now != stored {
+            result.verdict = format!("stored offset {stored} rad changed to {now} rad");
+        }
+    }
     result.passed = result.verdict == "ok";
     Ok(result)
+}
+
+/// The drive is told its commutation is known, with an offset `error_rad`
+/// (electrical) off the true one: the offset the drive would need is found
+/// from the rotor's true angle against the angle the drive computes now.
+fn store_wrong_offset(cl: &mut ClosedLoop, pole_pairs: f64, error_rad: f64) -> Result<f32> {
+    let truth = pole_pairs * cl.sampled_state().theta_m_rad;
+    let believed = f64::from(cl.controller.electrical_angle_rad());
+    let mut p = *cl.controller.params();
+    let right = f64::from(p.encoder.electrical_offset_rad) + truth - believed;
+    p.encoder.electrical_offset_rad = (right + error_rad + PI).rem_euclid(2.0 * PI) as f32 - PI as f32;
+    p.startup.commutation_known = true;
+    let stored = p.encoder.electrical_offset_rad;
+    let p = servo_core::params::ValidatedParams::new(p).map_err(|e| anyhow!("wrong offset refused: {e:?}"))?;
+    cl.controller.apply_params(&p).map_err(|e| anyhow!("wrong offset not applied: {e:?}"))?;
+    Ok(stored)
 }
 
 /// `Disable` (the brake closes under the loops), then `Enable`: the largest
@@ -240,6 +270,10 @@ fn judge(r: &CaseResult, expected: Option<FaultSet>, faults: FaultSet) -> String
             }
             if r.enable_sag_um.is_none_or(|s| s > 10.0) {
                 return format!("enable sag {:?} µm (> 10)", r.enable_sag_um);
+            }
+            // A good Disable / Enable must not be taken for a fault.
+            if !faults.is_empty() || r.bridge_off_at_end {
+                return format!("after Disable / Enable: faults {:?}, bridge off {}", r.faults, r.bridge_off_at_end);
             }
             "ok".into()
         }

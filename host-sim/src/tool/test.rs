@@ -19,6 +19,9 @@ use std::time::{Duration, Instant};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum Target {
     Current,
+    /// A current step on the d axis: no torque, so the rotor stands and
+    /// no back-EMF enters the voltage (the winding's R and L alone).
+    CurrentD,
     Speed,
     Position,
 }
@@ -43,11 +46,12 @@ impl Spec {
         let (a, d) = (self.amplitude as f32, self.duration_s as f32);
         match (self.chirp, self.target) {
             (None, Target::Current) => TestSignal::CurrentStep { axis_q: true, amplitude_a: a, duration_s: d },
+            (None, Target::CurrentD) => TestSignal::CurrentStep { axis_q: false, amplitude_a: a, duration_s: d },
             (None, Target::Speed) => TestSignal::SpeedStep { amplitude_rad_s: a, duration_s: d },
             (None, Target::Position) => TestSignal::PositionStep { distance_m: a, duration_s: d },
             (Some((f0, f1)), t) => TestSignal::Chirp {
                 target: match t {
-                    Target::Current => ChirpTarget::Current,
+                    Target::Current | Target::CurrentD => ChirpTarget::Current,
                     Target::Speed => ChirpTarget::Speed,
                     Target::Position => ChirpTarget::Position,
                 },
@@ -63,6 +67,7 @@ impl Spec {
     pub fn signals(&self) -> [Signal; 4] {
         match self.target {
             Target::Current => [Signal::CurrentQReference, Signal::CurrentQ, Signal::VoltageQ, Signal::Speed],
+            Target::CurrentD => [Signal::CurrentDReference, Signal::CurrentD, Signal::VoltageD, Signal::Speed],
             Target::Speed => [Signal::SpeedReference, Signal::Speed, Signal::CurrentQ, Signal::MotorPosition],
             Target::Position => [Signal::PositionCommand, Signal::MotorPosition, Signal::Speed, Signal::CurrentQ],
         }
@@ -76,8 +81,11 @@ impl Spec {
     /// frequency; refused with the longest duration that fits otherwise. A
     /// tenth of the record lies before the trigger.
     pub fn capture_config(&self, pwm_hz: f64) -> Result<CaptureConfig> {
+        if self.chirp.is_some() && self.target == Target::CurrentD {
+            bail!("a chirp runs on the q current (`chirp current`); `current-d` is a step target only");
+        }
         let base: u16 = match self.target {
-            Target::Current => 1,
+            Target::Current | Target::CurrentD => 1,
             Target::Speed => 4,
             Target::Position => 20,
         };

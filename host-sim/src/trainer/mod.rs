@@ -18,6 +18,7 @@ pub mod evaluate;
 pub mod from_logs;
 pub mod log_moves;
 pub mod route;
+pub mod stiffness;
 pub mod bench;
 pub mod ibas;
 pub mod network;

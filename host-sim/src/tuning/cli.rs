@@ -17,7 +17,7 @@ pub struct TuneArgs {
 #[derive(Subcommand)]
 pub enum TuneCmd {
     /// Identify inertia and friction (speed-step captures, both directions)
-    /// and R, L (a q-current step captured every PWM period). Writes
+    /// and R, L (a d-current step captured every PWM period). Writes
     /// identified.json. Without --capture: runs the captures on the
     /// simulated rig first (and writes them).
     Identify {
@@ -25,8 +25,10 @@ pub enum TuneCmd {
         /// speed` writes them (t_s, current_q, speed[, motor_position]).
         #[arg(long)]
         capture: Vec<PathBuf>,
-        /// A q-current step capture (t_s, current_q, voltage_q[, speed]),
-        /// decimation 1, as `host-sim drive step current` writes it.
+        /// A d-current step capture (t_s, current_d, voltage_d[, speed]),
+        /// decimation 1, as `host-sim drive step current-d` writes it (a
+        /// q-current step's current_q, voltage_q also work, less well: the
+        /// rotor turns).
         #[arg(long)]
         current_capture: Option<PathBuf>,
         #[arg(long)]
@@ -288,6 +290,7 @@ pub fn propose_and_check(rig: &RigConfig, id: Option<&Identified>, asked: Asked,
             "model_overshoot_pct": design.model_overshoot_pct,
             "achieved_overshoot_pct": sf.overshoot_pct,
             "overshoot_tolerance_pct": measure::overshoot_tolerance_pct(asked_os),
+            "overshoot_noise_floor_pct": measure::overshoot_noise_floor_pct(y, cap.dt_s, t0, step.spec.duration_s, step.spec.amplitude),
             "bandwidth_pass": bw_pass,
             "overshoot_pass": os_pass,
             "pass": bw_pass && os_pass,

@@ -332,21 +332,40 @@ pub fn identify_mechanics(caps: &[Capture], kt: f64, metres_per_rad: f64, o: &Me
     })
 }
 
-/// The winding as identified from a q-current step.
+/// The winding as identified from a current step.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ElecId {
     pub resistance_ohm: Estimate,
     pub inductance_h: Estimate,
-    /// From the back-EMF term when the rotor turned during the step.
+    /// From the back-EMF term when the rotor turned during a q step.
     pub flux_linkage_wb: Option<Estimate>,
     pub fit: LsFit,
     pub source: String,
+    /// `d` or `q`: the axis the step ran on.
+    pub axis: String,
+    /// How R was found, and what to trust it for.
+    pub note: String,
 }
 
-/// From `current_q`, `voltage_q` (and `speed`) sampled every PWM period:
-/// the voltage computed at sample n acts over period n+1 (computation, then
-/// the PWM's update), so `v_{n−1} = R (i_n + i_{n+1})/2 + L (i_{n+1} − i_n)/T
-/// + p ψ ω_n`. The sample period must be the PWM period (decimation 1).
+/// Below this speed (rad/s, mean over the pre-trigger share) a rotor
+/// counts as standing: the back-EMF `p ψ ω` is then under 0.5 % of the
+/// resistive drop of a 1 A hold current on the shipped motor; the PLL's
+/// sample-to-sample noise is larger than this and averages out.
+const STANDING_MEAN_SPEED_RAD_S: f64 = 0.5;
+
+/// From a current step sampled every PWM period. The voltage computed at
+/// sample n acts over period n+1 (computation, then the PWM's update), so
+/// `v_{n−1} = R (i_n + i_{n+1})/2 + L (i_{n+1} − i_n)/T (+ p ψ ω_n on q)`.
+///
+/// - **d axis** (`current_d`, `voltage_d`; `host-sim drive step current-d`):
+///   no torque, so the rotor stands and no back-EMF enters; R and L are
+///   fitted jointly with a constant (a fixed voltage error of the inverter or
+///   the sensing), R from the plateau against the rest before the step.
+/// - **q axis** (`current_q`, `voltage_q`): the step accelerates the rotor;
+///   R comes from the standstill before it (`v = R i` under a hold current
+///   of ≥ 1 A), else from a joint fit with ψ, which trades R against ψ while
+///   the rotor accelerates (+10 % on the nominal rig, +24 % on a rig holding
+///   a 6 kg payload): the note says so.
 pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filter_hz: f64) -> Result<ElecId> {
     if (c.dt_s - pwm_period_s).abs() > 0.01 * pwm_period_s {
         bail!(
@@ -356,8 +375,15 @@ pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filt
             pwm_period_s * 1e6
         );
     }
-    let i = c.get("current_q").with_context(|| format!("{}: no `current_q`", c.source))?;
-    let v = c.get("voltage_q").with_context(|| format!("{}: no `voltage_q`", c.source))?;
+    let axis_d = c.get("current_d").is_some() && c.get("voltage_d").is_some();
+    let (i, v) = if axis_d {
+        (c.get("current_d").unwrap_or_default(), c.get("voltage_d").unwrap_or_default())
+    } else {
+        (
+            c.get("current_q").with_context(|| format!("{}: neither `current_d` and `voltage_d` nor `current_q`", c.source))?,
+            c.get("voltage_q").with_context(|| format!("{}: no `voltage_q`", c.source))?,
+        )
+    };
     let dt = c.dt_s;
     let n = c.len();
     let w = c.get("speed").map(<[f64]>::to_vec).unwrap_or_else(|| vec![0.0; n]);
@@ -365,6 +391,12 @@ pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filt
         let (lo, hi) = w.iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)));
         hi - lo > 5.0
     };
+    if axis_d && turned {
+        bail!(
+            "{}: the rotor turned during the d-axis step (speed spans more than 5 rad/s): hold it still (brake closed or the position loop holding) and capture again",
+            c.source
+        );
+    }
     // The relation holds sample by sample between sequences; the same
     // zero-phase low-pass on each keeps it and takes the current sensor's
     // noise out of the difference regressor (noise in a regressor biases
@@ -373,13 +405,27 @@ pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filt
     let x1 = filtfilt(&(1..n - 1).map(|k| 0.5 * (i[k] + i[k + 1])).collect::<Vec<_>>(), filter_hz, dt);
     let x2 = filtfilt(&(1..n - 1).map(|k| (i[k + 1] - i[k]) / dt).collect::<Vec<_>>(), filter_hz, dt);
     let x3 = filtfilt(&(1..n - 1).map(|k| pole_pairs * w[k]).collect::<Vec<_>>(), filter_hz, dt);
+    let corr = 1.0 / (2.0 * filter_hz * dt);
+    if axis_d {
+        let rows: Vec<Vec<f64>> = (0..y.len()).map(|k| vec![x1[k], x2[k], 1.0]).collect();
+        let fit = least_squares(&rows, &y, corr)?;
+        let est = |j: usize| Estimate { value: fit.theta[j], std_err: fit.std_err[j] };
+        return Ok(ElecId {
+            resistance_ohm: est(0),
+            inductance_h: est(1),
+            flux_linkage_wb: None,
+            fit,
+            source: c.source.clone(),
+            axis: "d".into(),
+            note: "d-axis step at standstill: R and L with a constant voltage error, no back-EMF".into(),
+        });
+    }
     // R from the standstill before the step, where `v = R i` holds alone
-    // (no di/dt, no back-EMF): the joint fit over the step lets R trade
-    // against ψ while the rotor accelerates (R came out 10 % high, ψ 3 %
-    // low). The pre-trigger share of the capture (its first 1/12), if the
-    // rotor stood and a hold current flowed.
+    // (no di/dt, no back-EMF): the pre-trigger share of the capture (its
+    // first 1/12), if the rotor stood and a hold current flowed.
     let rest = n / 12;
-    let standing = rest > 8 && w[..rest].iter().all(|x| x.abs() < 0.5);
+    let mean_w = w[..rest.max(1)].iter().sum::<f64>() / rest.max(1) as f64;
+    let standing = rest > 8 && mean_w.abs() < STANDING_MEAN_SPEED_RAD_S;
     let (si, sv) = (i[..rest].iter().sum::<f64>(), v[..rest].iter().sum::<f64>());
     let static_r = (standing && (si / rest as f64).abs() > 1.0).then(|| {
         let r = sv / si;
@@ -398,16 +444,58 @@ pub fn identify_electrical(c: &Capture, pole_pairs: f64, pwm_period_s: f64, filt
             r
         })
         .collect();
-    let fit = least_squares(&rows, &y, 1.0 / (2.0 * filter_hz * dt))?;
+    let fit = least_squares(&rows, &y, corr)?;
     let est = |j: usize| Estimate { value: fit.theta[j], std_err: fit.std_err[j] };
     let o = usize::from(static_r.is_none());
+    let note = if static_r.is_some() {
+        "q-axis step: R from the hold current at standstill before the step".to_string()
+    } else {
+        "q-axis step without a standing hold current of ≥ 1 A: R fitted jointly with ψ while the rotor accelerated, biased high (capture `drive step current-d` instead)".to_string()
+    };
     Ok(ElecId {
         resistance_ohm: static_r.unwrap_or_else(|| est(0)),
         inductance_h: est(o),
         flux_linkage_wb: if turned { Some(est(o + 1)) } else { None },
         fit,
         source: c.source.clone(),
+        axis: "q".into(),
+        note,
     })
+}
+
+/// Below this speed (rad/s) a speed-step sample does not enter the flux
+/// fit: the back-EMF there is under 2.5 % of the hold current's resistive
+/// drop's scatter, and the PLL's noise dominates.
+const FLUX_MIN_SPEED_RAD_S: f64 = 10.0;
+
+/// The magnet flux linkage from motion captures that carry `voltage_q`,
+/// `current_q` and `speed` (the identification's speed steps), with the
+/// winding's R and L known (the d-axis step): `v_q − R i_q − L di_q/dt =
+/// p ψ ω` on every sample faster than 10 rad/s, one coefficient by least
+/// squares. The drive's own belief of ψ sets its torque constant
+/// (`1.5 p ψ`) and its back-EMF feedforward; a unit whose magnets carry less
+/// flux (hot, or a weaker batch) is then driven with both wrong. `None`
+/// when no capture has the columns or nothing moved.
+pub fn identify_flux(caps: &[Capture], pole_pairs: f64, r_ohm: f64, l_h: f64) -> Result<Option<Estimate>> {
+    let mut rows = Vec::new();
+    let mut y = Vec::new();
+    for c in caps {
+        let (Some(v), Some(i), Some(w)) = (c.get("voltage_q"), c.get("current_q"), c.get("speed")) else {
+            continue;
+        };
+        let di = sg_derivative(i, 2, c.dt_s);
+        for k in 0..c.len() {
+            if w[k].abs() >= FLUX_MIN_SPEED_RAD_S {
+                rows.push(vec![pole_pairs * w[k]]);
+                y.push(v[k] - r_ohm * i[k] - l_h * di[k]);
+            }
+        }
+    }
+    if rows.len() < 20 {
+        return Ok(None);
+    }
+    let fit = least_squares(&rows, &y, 1.0)?;
+    Ok(Some(Estimate { value: fit.theta[0], std_err: fit.std_err[0] }))
 }
 
 /// The nominal values diagnose's model holds for the same quantities (the

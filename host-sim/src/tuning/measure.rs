@@ -133,6 +133,32 @@ pub fn step_figures_in(
     step_figures(&s, dt, t0, amplitude)
 }
 
+/// What sensor noise alone adds to a step's overshoot figure, %: the
+/// scatter of the 3-sample-mean response over the step's second half
+/// (settled: the loops here settle well inside half their step) times the
+/// expected largest of `n` normal draws, `√(2 ln n)`, over the samples the
+/// peak is sought in, against the amplitude. A perfect step reads this much
+/// overshoot; an ask below it cannot be resolved by the capture.
+pub fn overshoot_noise_floor_pct(y: &[f64], dt: f64, t0: f64, duration_s: f64, amplitude: f64) -> f64 {
+    let start = (t0 / dt).ceil() as usize;
+    let end = ((((t0 + duration_s) / dt).floor() as usize).saturating_sub(1)).min(y.len());
+    if end < start + 16 || amplitude == 0.0 {
+        return f64::NAN;
+    }
+    let mid = start + (end - start) / 2;
+    let s: Vec<f64> = (mid.max(1)..end.saturating_sub(1)).map(|k| (y[k - 1] + y[k] + y[k + 1]) / 3.0).collect();
+    let mean = s.iter().sum::<f64>() / s.len() as f64;
+    // A slow settling tail would count as noise: take the scatter about a
+    // straight line through the half.
+    let n = s.len() as f64;
+    let xm = (n - 1.0) / 2.0;
+    let sxx: f64 = (0..s.len()).map(|k| (k as f64 - xm).powi(2)).sum();
+    let slope = (0..s.len()).map(|k| (k as f64 - xm) * (s[k] - mean)).sum::<f64>() / sxx;
+    let var = (0..s.len()).map(|k| (s[k] - mean - slope * (k as f64 - xm)).powi(2)).sum::<f64>() / (n - 2.0);
+    let samples = (end - start) as f64;
+    100.0 * var.sqrt() * (2.0 * samples.ln()).sqrt() / amplitude.abs()
+}
+
 /// The figure's rule: the bandwidth within ±20 % of the ask; the overshoot
 /// within ±20 % of the ask for asks ≥ 5 %, within ±1 percentage point
 /// (20 % of 5 %) below that (a 0 % ask passes up to 1 %).

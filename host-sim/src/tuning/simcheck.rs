@@ -165,7 +165,10 @@ pub fn run_test(cl: &mut ClosedLoop, spec: &TestSpec) -> Result<Captured> {
     cl.controller.capture_configure(&cfg).map_err(|e| anyhow!("capture: {e}"))?;
     // Fill the pre-trigger ring, then start.
     for _ in 0..(u64::from(cfg.pre_trigger) * u64::from(cfg.decimation) + 4) {
-        cl.step();
+        let tel = cl.step();
+        if !tel.faults.is_empty() {
+            bail!("faults before the test started: {:?}", tel.faults.names().collect::<Vec<_>>());
+        }
     }
     cl.controller.start_test(spec.test_signal()).map_err(|e| anyhow!("test refused: {e}"))?;
     let max = (3.0 * spec.duration_s * pwm) as u64 + 400_000;
@@ -184,10 +187,16 @@ pub fn run_test(cl: &mut ClosedLoop, spec: &TestSpec) -> Result<Captured> {
     }
     // Let the test end before the next one.
     while cl.controller.test_running() {
-        cl.step();
+        let tel = cl.step();
+        if !tel.faults.is_empty() {
+            bail!("faults as the test ended: {:?}", tel.faults.names().collect::<Vec<_>>());
+        }
     }
     for _ in 0..4000 {
-        cl.step();
+        let tel = cl.step();
+        if !tel.faults.is_empty() {
+            bail!("faults while settling after the test: {:?}", tel.faults.names().collect::<Vec<_>>());
+        }
     }
     let n = st.samples as usize;
     let mut cols = Vec::new();

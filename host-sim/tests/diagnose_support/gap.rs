@@ -55,6 +55,14 @@ pub struct GapLogs {
     pub train: Log,
     pub held: Log,
     pub held_clean: Log,
+    /// `held_clean` with exact sensors (no current or bus noise, a 24-bit
+    /// ADC, a 1 nm scale; the encoder keeps its counts, which the control
+    /// uses): what of the floor is the nominal's modelling error, not noise.
+    pub held_clean_exact: Log,
+    /// The training experiment without the events: a clean reference of
+    /// the same rig, to measure how much of the floor a fit on a
+    /// reference removes.
+    pub train_clean: Log,
     pub events: Vec<[f64; 3]>,
     pub factor: f64,
     pub f_motion_rms_n: f64,
@@ -148,12 +156,21 @@ pub fn force_logs(rig: &RigConfig, timing: Timing, factor: Option<f64>, seed: u6
     let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x6a9);
     let factor = factor.unwrap_or_else(|| (rng.random_range(0.2f64.ln()..5f64.ln())).exp());
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    let (train, _, _, _) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
+    let (train, _, _, train_clean) = with_events(rig, 1000 + seed, timing, factor, sign, &mut rng);
     let (held, events, f_rms, held_clean) = with_events(rig, 2000 + seed, timing, factor, sign, &mut rng);
+    let mut exact = rig.clone();
+    let se = &mut exact.plant.sensors;
+    se.current_noise_a = 0.0;
+    se.bus_voltage_noise_v = 0.0;
+    se.adc_bits = 24;
+    se.linear_scale_resolution_m = 1e-9;
+    let held_clean_exact = run(&exact, &UnmodelledEffects::default(), &quiet_experiment(rig, 2000 + seed), 2000 + seed).expect("exact-sensor run");
     GapLogs {
         train,
         held,
         held_clean,
+        held_clean_exact,
+        train_clean,
         events,
         factor,
         f_motion_rms_n: f_rms,

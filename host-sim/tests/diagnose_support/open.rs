@@ -361,15 +361,17 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                         .map(|k| a[k] - lost * ((t[k] - tb) / 0.04).clamp(0.0, 1.0))
                         .collect()
                 };
-                (with_column(&l, "motor_angle_rad", f), tb)
+                (with_column(&l, "motor_angle_rad", f), tb, lost)
             };
-            let (train, _) = burst(run_exp(rig, &none, 1000 + seed), &mut rng);
-            let (held, tb) = burst(run_exp(rig, &none, 2000 + seed), &mut rng);
+            let (train, _, _) = burst(run_exp(rig, &none, 1000 + seed), &mut rng);
+            let (held, tb, lost) = burst(run_exp(rig, &none, 2000 + seed), &mut rng);
             Logs {
                 train,
                 held,
                 held_events_s: vec![tb],
-                generic_truth: None,
+                // The motor angle loses `lost`: the scale − motor difference
+                // gains it from then on.
+                generic_truth: Some(("count_loss", vec![("lost_rad", lost)])),
             }
         }
     }

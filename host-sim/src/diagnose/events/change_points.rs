@@ -101,6 +101,45 @@ pub fn detect_floor(
     k: f64,
     floor: [f64; 2],
 ) -> Vec<Vec<usize>> {
+    let (stats, sig) = step_stats(segs, rem, floor);
+    segs.iter()
+        .zip(&stats)
+        .map(|(s, st)| {
+            change_points(
+                st,
+                &sig,
+                ((STEP_WINDOW_S / s.dt).round() as usize).max(3),
+                k,
+            )
+        })
+        .collect()
+}
+
+/// The step statistic in robust sigmas per sample (the largest over the
+/// torque and position channels), per segment.
+pub fn step_z(segs: &[&Segment], rem: &Remainder, floor: [f64; 2]) -> Vec<Vec<f64>> {
+    let (stats, sig) = step_stats(segs, rem, floor);
+    stats
+        .iter()
+        .map(|st| {
+            let n = st.first().map_or(0, Vec::len);
+            (0..n)
+                .map(|i| {
+                    st.iter()
+                        .zip(&sig)
+                        .filter(|(_, s)| **s > 0.0)
+                        .map(|(d, s)| d[i].abs() / s)
+                        .fold(0.0, f64::max)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Step statistics per segment and channel, and each channel's robust
+/// sigma over all segments.
+#[allow(clippy::type_complexity)]
+fn step_stats(segs: &[&Segment], rem: &Remainder, floor: [f64; 2]) -> (Vec<Vec<Vec<f64>>>, Vec<f64>) {
     let chans: Vec<usize> = (0..2)
         .filter(|c| rem.iter().any(|r| r[*c].is_some()))
         .collect();
@@ -131,17 +170,7 @@ pub fn detect_floor(
             )
         })
         .collect();
-    segs.iter()
-        .zip(&stats)
-        .map(|(s, st)| {
-            change_points(
-                st,
-                &sig,
-                ((STEP_WINDOW_S / s.dt).round() as usize).max(3),
-                k,
-            )
-        })
-        .collect()
+    (stats, sig)
 }
 
 /// Events in the logged signals: move starts and stops, and change points

@@ -81,3 +81,28 @@ pub fn sg_smooth(y: &[f64], m: usize) -> Vec<f64> {
     }
     out
 }
+
+/// Quadratic Savitzky–Golay second derivative over ±m samples (step h) of
+/// a whole series, the operator the rod's acceleration from the scale goes
+/// through, for a prediction of what reaches the torque channel to be
+/// differentiated alike; zero within m samples of the ends, where the
+/// window does not fit.
+pub fn sg_second(y: &[f64], m: usize, h: f64) -> Vec<f64> {
+    let n = y.len();
+    let mut out = vec![0.0; n];
+    if m == 0 || n < 2 * m + 1 {
+        return out;
+    }
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sq: f64 = (0..=2 * m)
+        .map(|j| ((j as f64 - mf).powi(2) - s2).powi(2))
+        .sum();
+    let coef: Vec<f64> = (0..=2 * m)
+        .map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq / (h * h))
+        .collect();
+    for (i, o) in out.iter_mut().enumerate().take(n - m).skip(m) {
+        *o = coef.iter().zip(&y[i - m..=i + m]).map(|(a, b)| a * b).sum();
+    }
+    out
+}

@@ -3,6 +3,8 @@
 //! and runs one figure group per file, each a row per rig on the same
 //! held-out evaluation run (`eval.rs`):
 //! - `shipped.rs`: the compiled weights;
+//! - `scaled.rs`: the compiled weights scaled by the compliance ratio the
+//!   drive identifies (`trainer::stiffness`);
 //! - `retrained.rs`: weights retrained from the rig's own logs through the
 //!   documented route;
 //! - `no_load_cell.rs`: the load cell off, the observer on the drive's
@@ -18,6 +20,7 @@ pub mod eval;
 pub mod no_load_cell;
 pub mod retrained;
 pub mod rigs;
+pub mod scaled;
 pub mod shipped;
 
 use crate::config::RigConfig;
@@ -41,7 +44,7 @@ pub struct BenchArgs {
     /// Only these rigs (comma-separated names, as in summary.json).
     #[arg(long, value_delimiter = ',')]
     pub rigs: Vec<String>,
-    /// Only these figure groups (comma-separated: shipped, retrained, no_load_cell, anatomy);
+    /// Only these figure groups (comma-separated: shipped, scaled, retrained, no_load_cell, anatomy);
     /// default: all but anatomy, a measurement without a bar.
     #[arg(long, value_delimiter = ',')]
     pub groups: Vec<String>,
@@ -69,6 +72,9 @@ pub fn groups() -> Vec<Group> {
                 None => None,
             };
             shipped::run(r, weights, a.seed)
+        }),
+        ("scaled", "compiled weights scaled by the compliance ratio the drive identifies (lowering current step against the rig file's design), friction identified", |r, a| {
+            scaled::run(r, &RigConfig::load_or_nominal(a.params.as_ref())?, a.seed)
         }),
         ("retrained", "weights retrained from the rig's own logs (route: identify friction, log, dataset-from-logs, train --hidden 8, upload, verify)", |r, a| {
             retrained::run(r, a.cycles, a.seed, &a.out)
