@@ -217,7 +217,11 @@ impl Controller {
         }
         let r = self.next_reference();
         self.position_reference_m = r.position_m;
-        let observer_shift = if self.mode == Mode::Running {
+        // The observer's shift ramps in only once the brake has let go: a
+        // shift while it opens would push the rotor against the brake,
+        // which the start-up torque watch rightly reads as a rotor that
+        // does not follow its torque.
+        let observer_shift = if self.mode == Mode::Running && !self.brake_opening() {
             let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n());
             let c = self.compensator.update(&self.params, inputs, self.derived.position_period_s);
             if c.limited {
