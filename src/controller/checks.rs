@@ -61,18 +61,16 @@ impl Controller {
     /// engage time where the power stage is still trusted, then off.
     #[inline(never)]
     fn switch_off(&mut self) {
-        {
-            let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
-                && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
-            // Short-circuit braking bridges the brake's engage time, where
-            // the fault leaves the power stage and the supply trustworthy.
-            self.short_circuit_periods = if driving && self.params.brake.fitted && self.faults.intersection(NO_SHORT_CIRCUIT).is_empty() {
-                self.derived.brake_engage_periods
-            } else {
-                0
-            };
-            self.set_mode(Mode::Fault);
-        }
+        let driving = matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Braking | Mode::Homing | Mode::Preloading)
+            && self.speed_rad_s().abs() < self.derived.short_circuit_speed_max_rad_s;
+        // Short-circuit braking bridges the brake's engage time, where
+        // the fault leaves the power stage and the supply trustworthy.
+        self.short_circuit_periods = if driving && self.params.brake.fitted && self.faults.intersection(NO_SHORT_CIRCUIT).is_empty() {
+            self.derived.brake_engage_periods
+        } else {
+            0
+        };
+        self.set_mode(Mode::Fault);
     }
 
     /// Decelerates from the measured motion to rest and holds there.
