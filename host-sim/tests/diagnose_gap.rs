@@ -164,8 +164,10 @@ fn run_case(spec: Spec) -> Outcome {
             o.disturbance_locked = Some(d.locked_to_signals);
         }
         o.train_fit_torque_pct = s.channels.iter().find(|c| c.channel == "torque").map(|c| c.fit_train_pct);
-        o.ceiling_primary_pct = ceiling(&s.primary_channel, g, &d.nominal);
         if let Some((gn, fl, fx)) = floors(&s.primary_channel, g, &d.nominal) {
+            // The shrink if the force were known exactly: the gap down to
+            // the same experiment's without the events.
+            o.ceiling_primary_pct = Some(shrink(gn, fl));
             o.floor_primary = Some(fl);
             o.floor_noise_share_pct = Some(100.0 * (1.0 - (fx / fl).powi(2)));
             let after = gn * (1.0 - s.verdict.explained_pct / 100.0);
@@ -253,21 +255,6 @@ fn run_case(spec: Spec) -> Outcome {
     o.gates = s.gates.iter().map(|g| format!("{}{}", g.kind, g.channel.as_ref().map_or(String::new(), |c| format!("({c})")))).collect();
     o.wall_s = t0.elapsed().as_secs_f64();
     o
-}
-
-/// Primary-channel shrink if the force were known exactly: the held-out
-/// log's nominal gap against the same experiment's without the events.
-fn ceiling(primary: &str, g: &GapLogs, nominal: &Nominal) -> Option<f64> {
-    let c = CHANNELS.iter().position(|x| *x == primary)?;
-    let tilt = Physics::from_rig(&nominal_rig()).tilt_deg;
-    let mut w = [0.0; NCH];
-    w[c] = 1.0;
-    let gap_of = |log| {
-        let segs = build_segments(log, nominal, tilt).ok()?;
-        let refs: Vec<_> = segs.iter().collect();
-        Some(fit::gap(&refs, None, &w))
-    };
-    Some(shrink(gap_of(&g.held)?, gap_of(&g.held_clean)?))
 }
 
 /// The held-out log's nominal gap on the primary channel, the floor (the
