@@ -191,7 +191,7 @@ pub fn predict(
     let cps: Vec<Vec<usize>> = events::detect_floor(segs, rem, k, floor)
         .iter()
         .zip(segs.iter().zip(rem))
-        .map(|(cp, (s, r))| edges::refine(s, r, cp, floor, smoothed))
+        .map(|(cp, (s, r))| edges::refine(s, r, cp, k, floor, smoothed))
         .collect();
     let chans: Vec<usize> = [TORQUE, POSITION]
         .into_iter()

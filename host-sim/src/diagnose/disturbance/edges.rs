@@ -10,14 +10,16 @@
 //! (the torque channel), a sharp step where it is raw — and the edge put
 //! at the sample that leaves the least weighted residual.
 //!
-//! The channel is the one whose step statistic at the change point is the
-//! largest in its robust sigmas (the one the detector saw it on): a force
-//! on the rod reaches the torque channel at once (the rod's inertia is
-//! the scale's, so the residual is the force itself), the position channel
-//! through the drive train's ringing.
+//! The channel is the torque channel wherever the step shows there above
+//! the detector's threshold, else the one whose step statistic is the
+//! largest in its robust sigmas: a force on the rod reaches the torque
+//! residual at once (the rod's inertia is the scale's, so the residual is
+//! the force itself), the position channel only as the drive train winds
+//! up — a rise over half the axial mode's period, whose middle lies a
+//! quarter period (≈ 8 ms at 30 Hz) after the force's edge.
 
 use crate::diagnose::events::{robust_sigma, step_stat, weights, STEP_WINDOW_S};
-use crate::diagnose::residual::{sg_smooth, Segment, NCH};
+use crate::diagnose::residual::{sg_smooth, Segment, NCH, TORQUE};
 
 /// Each edge is searched within ± this of the detected change point, s:
 /// the detector's half window, inside which its peak can sit.
@@ -77,14 +79,16 @@ fn cost(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize, edge: usize) -> 
 }
 
 /// The change points of one segment re-placed at the sample rate
-/// (`floor`: the detector's weight floor per channel, torque and
-/// position; `smoothed(c)`: whether channel `c`'s residual is smoothed).
+/// (`k`: the detector's threshold, robust sigmas; `floor`: its weight
+/// floor per channel, torque and position; `smoothed(c)`: whether channel
+/// `c`'s residual is smoothed).
 /// Order is kept, and no two edges come closer than the detector's
 /// separation (`STEP_WINDOW_S`).
 pub fn refine(
     s: &Segment,
     r: &[Option<Vec<f64>>; NCH],
     cps: &[usize],
+    k: f64,
     floor: [f64; 2],
     smoothed: impl Fn(usize) -> bool,
 ) -> Vec<usize> {
@@ -106,16 +110,15 @@ pub fn refine(
         })
         .collect();
     let mut out: Vec<usize> = cps.to_vec();
-    for k in 0..out.len() {
-        let cp = out[k];
-        let Some((_, x, wt, _, _, h)) = chans
-            .iter()
-            .max_by(|a, b| (a.3[cp].abs() / a.4).total_cmp(&(b.3[cp].abs() / b.4)))
-        else {
+    for j in 0..out.len() {
+        let cp = out[j];
+        let z = |ch: &(usize, &Vec<f64>, Vec<f64>, Vec<f64>, f64, Vec<f64>)| ch.3[cp].abs() / ch.4;
+        let torque = chans.iter().find(|ch| ch.0 == TORQUE && z(ch) >= k);
+        let Some((_, x, wt, _, _, h)) = torque.or_else(|| chans.iter().max_by(|a, b| z(a).total_cmp(&z(b)))) else {
             continue;
         };
-        let prev = if k == 0 { 0 } else { out[k - 1] };
-        let next = cps.get(k + 1).copied().unwrap_or(n);
+        let prev = if j == 0 { 0 } else { out[j - 1] };
+        let next = cps.get(j + 1).copied().unwrap_or(n);
         let lo = prev.max(cp.saturating_sub(context));
         let hi = next.min(cp + context).min(n);
         // No interval comes out shorter than the detector's separation:
@@ -127,7 +130,7 @@ pub fn refine(
             continue;
         }
         if let Some(best) = (a..=b).min_by(|i, j| cost(x, wt, h, lo, hi, *i).total_cmp(&cost(x, wt, h, lo, hi, *j))) {
-            out[k] = best;
+            out[j] = best;
         }
     }
     out
