@@ -120,7 +120,7 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
         }
         DriveCmd::Identify(IdentifyCmd::Stiffness { params, out, upload, step_a, repeats }) => {
             let design = RigConfig::load_or_nominal(params.as_ref())?;
-            let o = stiffness::ProbeOptions { step_a, repeats };
+            let o = stiffness::ProbeOptions { step_a, repeats, ..Default::default() };
             let s = stiffness::run(c, &design, &o, upload, &out)?;
             println!("{}", stiffness::describe(&s));
             println!("wrote {}", out.join("stiffness.json").display());

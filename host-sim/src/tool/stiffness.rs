@@ -32,11 +32,13 @@ pub struct ProbeOptions {
     /// thrown up).
     pub step_a: f64,
     pub repeats: usize,
+    /// Drive time the rod rests before each probe, s.
+    pub rest_s: f64,
 }
 
 impl Default for ProbeOptions {
     fn default() -> Self {
-        Self { step_a: st::STEP_A, repeats: st::REPEATS }
+        Self { step_a: st::STEP_A, repeats: st::REPEATS, rest_s: REST_S }
     }
 }
 
@@ -74,6 +76,7 @@ pub fn probe(c: &mut Client, o: &ProbeOptions, out: Option<&Path>) -> Result<Rin
     let spec = Spec::step(Target::Current, o.step_a, st::STEP_S);
     let mut rings = Vec::new();
     for k in 0..o.repeats {
+        at_rest(c, o.rest_s)?;
         let cap = capture_test(c, &spec, pwm).with_context(|| format!("probe {}", k + 1))?;
         if let Some(dir) = out {
             cap.write_csv(&dir.join(format!("probe_{}.csv", k + 1)))?;
@@ -84,6 +87,34 @@ pub fn probe(c: &mut Client, o: &ProbeOptions, out: Option<&Path>) -> Result<Rin
         settle(c)?;
     }
     st::combine(rings)
+}
+
+/// Drive time the rod must have rested before a probe, s: the start-up
+/// torque watch runs from `Enable` until the position loop first settles,
+/// and reads a probe during it as a torque that does not make the motion.
+const REST_S: f64 = 0.25;
+
+/// Waits until the drive has held the rod at rest for [`REST_S`] of its
+/// own time.
+fn at_rest(c: &mut Client, rest_s: f64) -> Result<()> {
+    let t0 = Instant::now();
+    let mut since: Option<f32> = None;
+    loop {
+        let s = status(c)?;
+        if s.faults != 0 || s.mode != Mode::Running {
+            bail!("the drive left Running ({:?}, faults {:#x}) before the probe", s.mode, s.faults);
+        }
+        if s.test_running || s.speed_rad_s.abs() >= 0.5 {
+            since = None;
+        } else if f64::from(s.time_s - *since.get_or_insert(s.time_s)) >= rest_s {
+            return Ok(());
+        }
+        if t0.elapsed() > Duration::from_secs(20) {
+            bail!("the rod did not rest for {rest_s} s within 20 s (speed {:.2} rad/s): the probe needs it held still", s.speed_rad_s);
+        }
+        c.poll(Duration::from_millis(10))?;
+        c.telemetry.clear();
+    }
 }
 
 /// Waits until the test has ended and the drive holds again.
@@ -128,7 +159,7 @@ pub fn probe_simulated(rig: &RigConfig, position_m: f64, seed: u64, o: &ProbeOpt
 /// The design's side: its hold current at its own payload, then its rings
 /// at the payload the cylinder's hold current says.
 pub fn against_design(cylinder: &Rings, design: &RigConfig, position_m: f64, seed: u64, o: &ProbeOptions) -> Result<ComplianceId> {
-    let own = probe_simulated(design, position_m, seed, &ProbeOptions { repeats: 1, ..*o }).context("the design at its own payload")?;
+    let own = probe_simulated(design, position_m, seed, o).context("the design at its own payload")?;
     let scale = st::payload_scale(design, cylinder.hold_a, own.hold_a)?;
     let mut matched = design.clone();
     matched.plant.rod.payload_mass_kg *= scale;
@@ -139,10 +170,14 @@ pub fn against_design(cylinder: &Rings, design: &RigConfig, position_m: f64, see
 /// The whole identification on a simulated drive of `rig` (the bench and
 /// the tests: the same code as on a board).
 pub fn identify_simulated(rig: &RigConfig, design: &RigConfig, seed: u64) -> Result<ComplianceId> {
-    let o = ProbeOptions::default();
+    identify_simulated_with(rig, design, seed, &ProbeOptions::default())
+}
+
+/// [`identify_simulated`] with the probe's options.
+pub fn identify_simulated_with(rig: &RigConfig, design: &RigConfig, seed: u64, o: &ProbeOptions) -> Result<ComplianceId> {
     let x0 = crate::tuning::X0_M;
-    let cylinder = probe_simulated(rig, x0, seed, &o).context("the cylinder")?;
-    against_design(&cylinder, design, x0, seed.wrapping_add(2), &o)
+    let cylinder = probe_simulated(rig, x0, seed, o).context("the cylinder")?;
+    against_design(&cylinder, design, x0, seed.wrapping_add(2), o)
 }
 
 /// The compiled weights scaled by the identified ratio.

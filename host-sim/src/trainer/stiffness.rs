@@ -46,8 +46,10 @@ pub const REPEATS: usize = 3;
 /// (A) there is no weight to lower (a horizontal or unloaded rod).
 pub const HOLD_MIN_A: f64 = 1.0;
 /// A ringing whose amplitude is below this many times the residual's RMS
-/// is not read (the simulated rigs ring at 6–12 times it).
-pub const RING_TO_NOISE_MIN: f64 = 3.0;
+/// is not read. The simulated rigs ring at about 3 times it (the residual
+/// holds the ringing's decay, which a steady sinusoid does not fit); the
+/// strongest line of white noise alone reaches a tenth of it.
+pub const RING_TO_NOISE_MIN: f64 = 1.5;
 /// Repeats whose frequencies spread more than this (relative standard
 /// deviation) disagree: something else moved the mode.
 pub const SPREAD_MAX: f64 = 0.03;
