@@ -58,7 +58,7 @@ fn the_commutation_check_keeps_its_margin_on_the_family_corners() {
         .filter(|c| {
             matches!(
                 c.failure,
-                Failure::None | Failure::WrongPolePairs | Failure::SwappedPhases | Failure::OffsetQuarterTurnOff | Failure::OffsetHalfTurnOff
+                Failure::None | Failure::WrongPolePairs | Failure::SwappedPhases | Failure::OffsetQuarterTurnOff | Failure::OffsetQuarterTurnBack | Failure::OffsetHalfTurnOff
             )
         })
         .collect();
