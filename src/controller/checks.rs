@@ -303,7 +303,9 @@ impl Controller {
             self.raise(FaultSet::WRONG_DIRECTION);
             return;
         }
-        let Some(o) = self.torque_watch.turn(reversed, self.params.encoder.electrical_offset_rad) else {
+        let emf_d_v = self.voltage_dq.d - self.params.motor.phase_resistance_ohm * self.current_dq.d;
+        let turned = self.torque_watch.turn(reversed, self.params.encoder.electrical_offset_rad, emf_d_v, self.speed_rad_s());
+        let Some(o) = turned else {
             // The turned angles did no better: the fault is latched already.
             self.switch_off();
             return;

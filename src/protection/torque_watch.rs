@@ -59,8 +59,9 @@
 //! the bound within the brake's engage time ([`TorqueWatch::turn`]). A
 //! reversed torque is turned by half a turn. A missing torque says the error
 //! is near a quarter turn but not which way (the torque left goes with the
-//! cosine of the error, the same for either sign), so a quarter turn is
-//! tried, watched with the same verdicts: tried the wrong way it reverses the
+//! cosine of the error, the same for either sign); the back-EMF's part
+//! along d says which (its sine). The quarter turn it points to is tried,
+//! watched with the same verdicts: tried the wrong way it reverses the
 //! torque, and the watch sees the push add to the fall within two looks;
 //! then the other quarter is half a turn further. A hold that fails
 //! otherwise switches the bridge off with the winding shorted.
@@ -163,15 +164,21 @@ impl TorqueWatch {
     ///
     /// A reversed torque turns by half a turn (exact for a half-turn error,
     /// within a quarter turn of q for any error beyond a quarter). A missing
-    /// one turns by a quarter, forwards: if that was the wrong way the
-    /// torque is now reversed, the next verdict says so, and half a turn on
-    /// from the trial is the other quarter. Any other second verdict, and
-    /// any verdict after a half turn, ends it.
-    pub fn turn(&mut self, reversed: bool, offset_rad: f32) -> Option<f32> {
+    /// one turns by a quarter, the way the back-EMF points: with the angle
+    /// `δ` off, the EMF `ω_e ψ` lies along the true q axis, so in the
+    /// drive's frame its d part is `−ω_e ψ sin δ` (`emf_d_v`, the d voltage
+    /// less `R i_d`): its sign against the speed's gives the error's. At
+    /// the verdict the rotor turns at several rad/s, an EMF of tenths of a
+    /// volt against millivolts of `ω_e L i_q` coupling. If the trial still
+    /// went the wrong way the torque is now reversed, the next verdict says
+    /// so, and half a turn on from the trial is the other quarter. Any other
+    /// second verdict, and any verdict after a half turn, ends it.
+    pub fn turn(&mut self, reversed: bool, offset_rad: f32, emf_d_v: f32, speed_rad_s: f32) -> Option<f32> {
         use core::f32::consts::{FRAC_PI_2, PI};
+        let quarter_rad = if emf_d_v * speed_rad_s > 0.0 { -FRAC_PI_2 } else { FRAC_PI_2 };
         let (next, by_rad) = match (self.turn, reversed) {
             (Turn::None, true) => (Turn::Final, PI),
-            (Turn::None, false) => (Turn::Quarter, FRAC_PI_2),
+            (Turn::None, false) => (Turn::Quarter, quarter_rad),
             (Turn::Quarter, true) => (Turn::Final, PI),
             _ => return None,
         };
@@ -179,7 +186,13 @@ impl TorqueWatch {
         *self = Self { watching: true, turn: next, offset_before_rad: before, ..Self::new() };
         // Kept within ±π, as commutation leaves it.
         let o = offset_rad + by_rad;
-        Some(if o > PI { o - 2.0 * PI } else { o })
+        Some(if o > PI {
+            o - 2.0 * PI
+        } else if o < -PI {
+            o + 2.0 * PI
+        } else {
+            o
+        })
     }
 
     /// The drive holds on a turned angle.
@@ -269,9 +282,15 @@ impl TorqueWatch {
             // response time, no shortcut. A quarter on trial follows a
             // torque that was missing, not pushing: nothing is wound up, and
             // a wrong trial must be seen within looks.
-            let allowed_s = if beyond_load && self.turn != Turn::Final { 1.5 * look.dt_s } else { Self::response_s(p) };
+            // A quarter on trial is judged early only on a reversal: the
+            // rod already falls at the speed the missing torque let it reach,
+            // and a right trial brakes it at once, a wrong one doubles its
+            // growth. A trial that neither brakes nor reverses gets the
+            // loop's full response time.
+            let trial = self.turn == Turn::Quarter;
+            let quick = (beyond_load || trial) && self.turn != Turn::Final;
+            let allowed_s = if quick { 1.5 * look.dt_s } else { Self::response_s(p) };
             if self.growing_s > allowed_s {
-                self.watching = false;
                 // How fast the speed away grew this look, against what the
                 // stated load alone gives (no torque) and what it gives with
                 // the push added to it (the torque reversed): the midpoint
@@ -279,7 +298,11 @@ impl TorqueWatch {
                 let growth_m_s2 = (away - self.away_m_s) / look.dt_s;
                 let per_amp_m_s2 = p.torque_constant_n_m_a() / p.reflected_inertia_kg_m2() * p.metres_per_rad();
                 let midpoint_m_s2 = per_amp_m_s2 * (look.stated_load_current_a.abs() + 0.5 * push_a);
-                return if growth_m_s2 > midpoint_m_s2 { TorqueWatchVerdict::Reversed } else { TorqueWatchVerdict::Inconsistent };
+                let reversed = growth_m_s2 > midpoint_m_s2;
+                if reversed || !trial || self.growing_s > Self::response_s(p) {
+                    self.watching = false;
+                    return if reversed { TorqueWatchVerdict::Reversed } else { TorqueWatchVerdict::Inconsistent };
+                }
             }
         } else {
             self.growing_s = 0.0;
