@@ -127,3 +127,12 @@ fn the_torque_channel_is_never_explained_by_the_logged_current() {
     // The voltage channel may use the current (its output is u_q).
     assert_ne!(input_features(s, VOLTAGE), input_features(&changed, VOLTAGE));
 }
+
+#[test]
+fn a_log_too_short_for_two_parts_is_refused_naming_the_minimum() {
+    // 20 samples at 1 kHz: the ±10-sample window twice plus 5 needs 25.
+    let short = log("short.csv", 1000.0, 0.02, 1.0, false);
+    let p = Physics::from_rig(&nominal_rig());
+    let e = diagnose_against(&short, None, None, Nominal::Physics(p), 0.0).err().expect("refused").to_string();
+    assert!(e.contains("short.csv") && e.contains("20 rows") && e.contains("at least 25 samples"), "{e}");
+}
