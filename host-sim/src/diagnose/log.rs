@@ -359,6 +359,25 @@ impl Log {
         self.issues.extend(issues);
     }
 
+    /// Why no stretch of the log can be analysed, with the minimum: the
+    /// residual smooths ±10 ms (at least ±2 samples) on both sides of every
+    /// sample, so a run or a stretch between gaps needs that window twice
+    /// and five samples more (and at least 12).
+    pub fn too_short(&self) -> String {
+        let t = self.get("time_s").unwrap_or(&[]);
+        let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+        d.sort_by(f64::total_cmp);
+        let dt = d.get(d.len() / 2).copied().unwrap_or(1e-3);
+        let m = super::residual::half_width(dt);
+        let longest = self.segments().iter().map(|(a, b)| b - a).max().unwrap_or(0);
+        format!(
+            "{} rows, the longest run or stretch between gaps {longest} samples; at {:.4} Hz one needs at least {} samples (the ±{m}-sample smoothing window on both sides, plus 5) to give a training and a held-out part",
+            self.len(),
+            1.0 / dt,
+            (2 * m + 5).max(12)
+        )
+    }
+
     /// Contiguous segments `[start, end)`: split at run changes and gaps.
     pub fn segments(&self) -> Vec<(usize, usize)> {
         let n = self.len();

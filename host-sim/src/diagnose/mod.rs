@@ -211,8 +211,9 @@ fn diagnose_split(
     let held: Vec<&Segment> = segments.iter().filter(|s| s.heldout).collect();
     if train.is_empty() || held.is_empty() {
         bail!(
-            "{}: too little data for a training and a held-out part",
-            log.source
+            "{}: too little data for a training and a held-out part: {}",
+            log.source,
+            log.too_short()
         );
     }
     let dt = train[0].t.get(1).map_or(1e-3, |t1| t1 - train[0].t[0]);

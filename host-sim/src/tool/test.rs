@@ -68,7 +68,10 @@ impl Spec {
         match self.target {
             Target::Current => [Signal::CurrentQReference, Signal::CurrentQ, Signal::VoltageQ, Signal::Speed],
             Target::CurrentD => [Signal::CurrentDReference, Signal::CurrentD, Signal::VoltageD, Signal::Speed],
-            Target::Speed => [Signal::SpeedReference, Signal::Speed, Signal::CurrentQ, Signal::MotorPosition],
+            // The q voltage rather than the position (the speed is there):
+            // it carries the back-EMF, so `tune identify` finds the magnets'
+            // flux from a drive's own speed steps.
+            Target::Speed => [Signal::SpeedReference, Signal::Speed, Signal::CurrentQ, Signal::VoltageQ],
             Target::Position => [Signal::PositionCommand, Signal::MotorPosition, Signal::Speed, Signal::CurrentQ],
         }
     }
