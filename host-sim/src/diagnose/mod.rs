@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod compare;
 pub mod cranfield;
+mod defmt_log;
 pub mod disturbance;
 pub mod effects;
 pub mod events;
