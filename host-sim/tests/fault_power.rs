@@ -194,38 +194,3 @@ fn a_bridge_off_fault_keeps_a_vertical_load_inside_the_stroke() {
     sc.duration_s = 2.0;
     run_meeting(&sc);
 }
-
-/// A nearly empty rod (2 % payload) cruising asks only its friction, about
-/// 1 A, under the open-phase detector's demand floor: the d-axis probe must
-/// lengthen the current vector so that the lost phase is still caught
-/// within the catalogue's 5 ms and named, with the controlled stop.
-#[test]
-fn an_open_phase_on_a_nearly_empty_rod_latches_within_5_ms() {
-    let base = rig();
-    let light = [
-        ("payload 2 %", host_sim::rigs::Draw { payload: 0.02, ..host_sim::rigs::Draw::BASE }.apply(&base)),
-        seen_family_rigs().pop().expect("the 2 % seen rig"),
-    ];
-    for (name, rig) in light {
-        let o = run_meeting(&catalog::open_phase(&rig));
-        assert_eq!(o.first_faults, FaultSet::OPEN_PHASE, "{name}: {}", o.brief());
-    }
-}
-
-/// The probe fills the current vector up to 3 demand floors with d
-/// current of the flux-weakening sign, and nothing beyond: none once q alone
-/// is that long, none when the vector would not fit the current limit.
-#[test]
-fn the_open_phase_probe_fills_the_vector_to_its_length_and_no_more() {
-    use servo_core::protection::open_phase::{probe_current_d_a, PROBE_VECTOR_PER_FLOOR};
-    let f = servo_core::ControlParams::DEFAULT.faults;
-    let target = PROBE_VECTOR_PER_FLOOR * f.open_phase_current_a;
-    for q in [0.0f32, 0.3, -1.0, 1.5, -2.9] {
-        let d = probe_current_d_a(&f, q, 10.0);
-        assert!(d < 0.0, "q {q}: d {d}");
-        assert!(((d * d + q * q).sqrt() - target).abs() < 1e-5, "q {q}: |i| {}", (d * d + q * q).sqrt());
-    }
-    assert_eq!(probe_current_d_a(&f, target * 1.01, 10.0), 0.0);
-    assert_eq!(probe_current_d_a(&f, 0.5, target * 0.99), 0.0);
-    assert_eq!(probe_current_d_a(&f, f32::NAN, 10.0), 0.0);
-}

@@ -22,46 +22,8 @@
 //! At standstill the reference may ask next to nothing of one phase (its
 //! axis perpendicular to the current vector); a window without enough
 //! demand on any empty phase gives no verdict, and the last one stands.
-//!
-//! A nearly empty rod cruising asks for its friction only (about 1 A), so
-//! no phase reaches the floor and no window judges while moving. There the
-//! speed period adds a d-axis probe ([`probe_current_d_a`]): on surface
-//! magnets (L_d = L_q) d current makes no torque, so the load does not feel
-//! it, but it lengthens the current vector so that every phase is asked for
-//! the floor in every window at the catalogue's cruise (see below).
 
 use crate::params::FaultParams;
-
-/// The current vector the probe fills up to, in multiples of the demand
-/// floor. A window spanning an angle x of the electrical period, centred on
-/// a phase's zero crossing (the worst place), asks that phase a mean |cos|
-/// of (1 − cos(x/2))/(x/2); at 0.2 m/s a 2 ms window spans x ≈ 2.0 rad and
-/// the mean is 0.46, so 3 floors ask 1.38 floors of every phase in every
-/// window: a lost lead is judged in the first whole window after it breaks.
-/// Every window judges every phase down to about 0.14 m/s (x = 1.4 rad, mean
-/// 1/3); slower, a phase is judged in the windows near its peak, once an
-/// electrical period.
-pub const PROBE_VECTOR_PER_FLOOR: f32 = 3.0;
-
-/// The d-axis probe current that makes the current vector
-/// [`PROBE_VECTOR_PER_FLOOR`] floors long, given the q reference: 0 when q
-/// alone is already that long, or when the vector would not fit inside
-/// `current_limit_a` (a thermal foldback keeps its whole budget for torque).
-/// Negative, the flux-weakening sign: it lowers the voltage the back-EMF
-/// needs instead of raising it, so it never pushes the loop into the
-/// voltage limit.
-pub fn probe_current_d_a(f: &FaultParams, current_q_a: f32, current_limit_a: f32) -> f32 {
-    let target_a = PROBE_VECTOR_PER_FLOOR * f.open_phase_current_a;
-    // Written so that a NaN anywhere gives no probe.
-    if !(target_a < current_limit_a) {
-        return 0.0;
-    }
-    let d2 = target_a * target_a - current_q_a * current_q_a;
-    if !(d2 > 0.0) {
-        return 0.0;
-    }
-    -crate::math::sqrt(d2)
-}
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct OpenPhaseMonitor {
