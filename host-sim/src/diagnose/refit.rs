@@ -84,7 +84,7 @@ fn features(s: &Segment, c: usize, i: usize, nominal: &Nominal) -> Vec<f64> {
         Nominal::Physics(p) => match c {
             // Nominal torque (torque-constant ratio), the moving mass's
             // inertia, a constant nut force, drag, viscous friction.
-            TORQUE => vec![nominal_pred(TORQUE), p.k * s.a[i], p.k, p.sgn(s.omega[i]), s.omega[i]],
+            TORQUE => vec![nominal_pred(TORQUE), p.k * s.a[i], p.k, s.friction_sign(p, i), s.omega[i]],
             // The nominal deflection (compliance ratio), and the deflection
             // a changed moving mass and a constant force leave through the
             // local compliance (the load offset's `−∂δ/∂F`).
@@ -156,7 +156,7 @@ fn torque_alternative(
     ct: f64,
     extra: &dyn Fn(&Segment, usize) -> f64,
 ) -> (f64, f64) {
-    let feats = |s: &Segment, i: usize| [extra(s, i), p.sgn(s.omega[i]), s.omega[i]];
+    let feats = |s: &Segment, i: usize| [extra(s, i), s.friction_sign(p, i), s.omega[i]];
     let nominal_torque = |s: &Segment, i: usize| match (&s.y[TORQUE], &s.r[TORQUE]) {
         (Some(y), Some(r)) => y[i] - r[i],
         _ => 0.0,

@@ -16,11 +16,13 @@
 mod lost_motion;
 mod physics;
 mod regression;
+mod sampled_friction;
 mod savitzky_golay;
 
 pub use lost_motion::*;
 pub use physics::*;
 pub use regression::*;
+pub use sampled_friction::*;
 use savitzky_golay::sg;
 pub use savitzky_golay::*;
 
@@ -107,8 +109,13 @@ pub struct Segment {
     /// anything up to breakaway), which no friction law predicts; it sets
     /// both the motor torque and the nut force that deflects the drive
     /// train. Those samples are faded out of fitting and scoring:
-    /// `1 − e^{−(ω/ω_rest)²}`.
+    /// `1 − e^{−(ω/ω_rest)²}`, times the same of the rod's own speed
+    /// where the scale measures it (the seal holds while the rod stands,
+    /// whatever the motor does).
     pub motion_weight: Vec<f64>,
+    /// Physics nominal: the friction's sign evaluated sample by sample and
+    /// smoothed as the current is (`sampled_friction`); empty otherwise.
+    pub friction_sign: Vec<f64>,
     /// Savitzky–Golay half width and sample step of the differentiation.
     pub sg_m: usize,
     pub dt: f64,
@@ -128,6 +135,13 @@ impl Segment {
         } else {
             1.0
         }
+    }
+
+    /// The sign a friction regressor takes at sample i: sampled and
+    /// smoothed where the segment has it, else the nominal's on the
+    /// smoothed speed.
+    pub fn friction_sign(&self, p: &Physics, i: usize) -> f64 {
+        self.friction_sign.get(i).copied().unwrap_or_else(|| p.sgn(self.omega[i]))
     }
 
     pub fn len(&self) -> usize {
@@ -208,6 +222,24 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             .map(|i| sg(&theta_raw, i, m, dt).1.abs())
             .fold(0.0, f64::max);
         let omega_th = (0.05 * omega_max).max(1e-9);
+        // The friction sample by sample under the nut force without the
+        // seal (load and the rod's smoothed inertia), smoothed as the
+        // current is (`sampled_friction`).
+        let fric = phys.map(|p| {
+            let f_base: Vec<f64> = (0..n)
+                .map(|j| {
+                    let jj = j.clamp(m, n - m - 1);
+                    let a_rod = match scale {
+                        Some(sc) if encoder => sg(sc, jj, m, dt).2,
+                        _ => k * sg(&theta_raw, jj, m, dt).2,
+                    };
+                    p.load_n(f_ext.map_or(0.0, |v| v[j]), tilt.map_or(tilt_default_deg, |v| v[j])) + p.m_moving * a_rod
+                })
+                .collect();
+            sampled_friction(p, &theta_raw, &f_base, m, dt, omega_th)
+        });
+        let g_acc = accel_smoother(m);
+        let mut rod_speed = Vec::new();
         let mut dir = 1.0;
         let mut last_rev = t[0];
         let mut yt = Vec::new();
@@ -248,15 +280,19 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             let fext = f_ext.map_or(0.0, |v| v[i]);
             // The rod's acceleration from the scale when it is logged next
             // to an encoder (two bodies measured), else the motor side's.
-            let a_rod = match (phys, scale) {
-                (Some(_), Some(sc)) if encoder => sg(sc, i, m, dt).2,
-                _ => a,
+            let (v_rod, a_rod) = match (phys, scale) {
+                (Some(_), Some(sc)) if encoder => {
+                    let q = sg(sc, i, m, dt);
+                    (q.1, q.2)
+                }
+                _ => (v, a),
             };
+            rod_speed.push(v_rod);
             let (f_load, f_ax, c_loc) = match phys {
                 Some(p) => {
                     let fl = p.load_n(fext, tilt_i);
                     let (f_seal, moving) = p.rod_friction_n(v, dir);
-                    let fa = fl + p.m_moving * a_rod + f_seal;
+                    let fa = fl + p.m_moving * a_rod + fric.as_ref().map_or(f_seal, |f| f.seal_n[i]);
                     // The flank is decided by the force without the seal's
                     // held (static) part: a gap is crossed when load and
                     // inertia beat the seal's breakaway (`flank_deviation`).
@@ -266,6 +302,9 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 None => (fext, fext, 0.0),
             };
             let iq = iq_raw.as_ref().map(|v| sg(v, i, m, dt));
+            // The torque channel's current smoothed as the accelerations
+            // are (`accel_smoother`); the voltage channel keeps the fit's.
+            let iq_torque = iq_raw.as_ref().map(|v| if phys.is_some() { smooth_with(v, i, &g_acc) } else { sg(v, i, m, dt).0 });
             seg.t.push(t[i]);
             seg.t_rel.push(t[i] - t[m]);
             seg.theta.push(th);
@@ -286,9 +325,12 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             seg.f_load.push(f_load);
             seg.f_ax.push(f_ax);
             seg.c_loc.push(c_loc);
+            if let Some(f) = &fric {
+                seg.friction_sign.push(f.sign[i]);
+            }
             seg.dir.push(dir);
             seg.since_reversal_s.push(t[i] - last_rev);
-            seg.iq.push(iq.map_or(0.0, |q| q.0));
+            seg.iq.push(iq_torque.unwrap_or(0.0));
             seg.iq_logged.push(iq_raw.as_ref().map_or(0.0, |v| v[i]));
             if encoder {
                 seg.theta_logged.push(theta_raw[i]);
@@ -305,10 +347,11 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (None, None) => 0.0,
             });
             match (nominal, &iq) {
-                (Nominal::Physics(p), Some(q)) => {
-                    let y = p.kt * q.0;
+                (Nominal::Physics(p), Some(_)) => {
+                    let y = p.kt * iq_torque.unwrap_or(0.0);
                     yt.push(y);
-                    rt.push(y - p.required_torque_nut(om, al, f_ax));
+                    let fr = fric.as_ref().expect("physics nominal");
+                    rt.push(y - (p.j_rot * al + p.k * f_ax + p.b_motor() * om + fr.screw_n_m[i]));
                 }
                 (Nominal::Regression(r), Some(q)) => {
                     let f = reg_features(&seg, seg.v_ref.len() - 1, fext, r.v_eps);
@@ -367,10 +410,17 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
         match phys {
             Some(p) => {
                 seg.flank = flank_deviation(&flank_force, p.rod_static_n);
+                // The seal sits on the rod: while the rod stands still it
+                // holds whatever the drive train's wind-up puts on it, also
+                // when the motor already turns (a breakaway, the rod stuck
+                // until the nut force beats the seal). With the rod
+                // measured, its own standstill fades the samples too.
+                let rest = |u: f64| 1.0 - (-(u / STANDSTILL_RAD_S).powi(2)).exp();
                 seg.motion_weight = seg
                     .omega
                     .iter()
-                    .map(|w| 1.0 - (-(w / STANDSTILL_RAD_S).powi(2)).exp())
+                    .zip(&rod_speed)
+                    .map(|(w, v)| rest(*w) * if rod_from_scale { rest(v / p.k) } else { 1.0 })
                     .collect();
             }
             None => {

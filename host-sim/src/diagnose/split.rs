@@ -51,6 +51,11 @@ pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
         } else {
             sl(&s.motion_weight)
         },
+        friction_sign: if s.friction_sign.is_empty() {
+            Vec::new()
+        } else {
+            sl(&s.friction_sign)
+        },
         sg_m: s.sg_m,
         dt: s.dt,
     }

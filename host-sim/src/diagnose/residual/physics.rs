@@ -40,8 +40,13 @@ pub struct Physics {
     pub gravity: f64,
     pub tilt_deg: f64,
     pub x0: f64,
-    /// Sign regularisation of every friction law, rad/s at the motor.
+    /// Sign regularisation of the friction laws on the smoothed speed,
+    /// rad/s at the motor.
     pub omega_eps: f64,
+    /// The rig's own sign regularisation (its `[plant.friction]`), rad/s
+    /// at the motor: the friction evaluated sample by sample
+    /// (`sampled_friction`) switches as the rig's does.
+    pub omega_eps_sampled: f64,
     pub compliance: Compliance,
     /// Contact preload of the nut (Hertz law), N.
     pub contact_preload_n: f64,
@@ -82,6 +87,7 @@ impl Physics {
             tilt_deg: p.load.initial_tilt_deg,
             x0: p.stroke.initial_position_m,
             omega_eps: 0.5,
+            omega_eps_sampled: p.friction.regularisation_velocity_m_s / k,
             compliance: Compliance::new(p),
             contact_preload_n: p.deformation.contact.preload_n,
             encoder_step_rad: std::f64::consts::TAU / f64::from(p.sensors.encoder_counts_per_rev),
@@ -136,14 +142,22 @@ impl Physics {
     /// in it; moving, it is the nominal law. Returns (force, weight of the
     /// moving law in [0, 1]).
     pub fn rod_friction_n(&self, v: f64, dir: f64) -> (f64, f64) {
-        let moving = (v / (self.k * self.omega_eps)).abs().tanh();
+        (self.rod_friction_eps_n(v, dir, self.k * self.omega_eps), (v / (self.k * self.omega_eps)).abs().tanh())
+    }
+
+    /// `rod_friction_n`'s force with the sign regularised at `v_eps`, m/s.
+    pub fn rod_friction_eps_n(&self, v: f64, dir: f64, v_eps: f64) -> f64 {
+        let moving = (v / v_eps).abs().tanh();
         let s = moving * v.signum() + (1.0 - moving) * dir;
         let stribeck =
             (self.rod_static_n - self.rod_coulomb_n) * (-(v / self.stribeck_m_s).powi(2)).exp();
-        (
-            self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck,
-            moving,
-        )
+        self.rod_viscous_n_s_m * v + s * self.rod_coulomb_n + moving * v.signum() * stribeck
+    }
+
+    /// The motor's own viscous friction (the bearings' part of `b_rot`
+    /// that is neither the screw's nor the rod's), N·m·s/rad.
+    pub fn b_motor(&self) -> f64 {
+        self.b_rot - self.rod_viscous_n_s_m * self.k * self.k - self.b_screw
     }
 
     /// Motor torque the nominal model needs for (ω, α) with the nut carrying
