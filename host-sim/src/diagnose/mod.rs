@@ -22,6 +22,7 @@ pub mod fit;
 pub mod gates;
 pub mod log;
 mod outcome;
+pub mod phase;
 pub mod plausible;
 pub mod rank;
 mod reference;
@@ -334,6 +335,11 @@ fn diagnose_split(
     };
     dist.over_stack_points = dist.primary_shrink_pct - stack_primary_shrink.max(0.0);
     let rem_base = if use_nominal { &rem_hn } else { &rem_h };
+    // A lock to the moves is judged on the steps the reference does not
+    // repeat at the same phase of its own moves (`phase`).
+    if let (Some(r), true) = (reference, dist.locked_to_signals) {
+        gates.extend(phase::recheck_lock(&mut dist, &held, rem_base, &cps, r, &nominal, tilt_default_deg)?);
+    }
     let cps_fixed = events::detect(&held, &rem_h, events::STEP_SIGMA);
     let steps_pct = |c: usize| {
         let mut wc = [0.0; NCH];

@@ -4,16 +4,14 @@
 //! Friction switches with the direction of motion within a fraction of a
 //! millisecond (the rig's own sign regularisation), and the logged current
 //! that balances it is smoothed over ±10 ms. A friction law evaluated on
-//! the ±10 ms smoothed speed switches over the whole window instead, so at
-//! every move start (a breakaway from rest under the full load) the
-//! nominal lags the current by the friction's full size for several
-//! milliseconds. Measured on clean identification runs of the nominal
-//! rig, that lag held about 90 % of the rigid-body nominal's residual
-//! energy on both the torque and the position channels. Smoothing the
-//! law's sample-by-sample value instead (`smooth(f(ω))`, not
-//! `f(smooth(ω))`) treats the friction exactly as the current is treated.
+//! the ±10 ms smoothed speed switches over the whole window instead (and
+//! the smoothing leaks the coming motion into the samples before it
+//! starts), so the nominal would switch the friction differently from the
+//! current it is compared with. Smoothing the law's sample-by-sample value
+//! (`smooth(f(ω))`, not `f(smooth(ω))`) treats the friction as the current
+//! is treated.
 
-use super::savitzky_golay::{accel_smoother, sg, smooth_with};
+use super::savitzky_golay::sg;
 use super::Physics;
 
 /// Half width of the speed the friction laws see, s: short enough to
@@ -63,8 +61,7 @@ pub fn sampled_friction(p: &Physics, theta: &[f64], f_base: &[f64], m: usize, dt
         screw.push(p.b_screw * om + s * (p.drag_n_m + p.mu * p.k * f_nut.abs()));
         sign.push(s);
     }
-    let g = accel_smoother(m);
-    let smooth = |y: &[f64]| -> Vec<f64> { (0..n).map(|i| smooth_with(y, i, &g)).collect() };
+    let smooth = |y: &[f64]| -> Vec<f64> { (0..n).map(|i| if i >= m && i + m < n { sg(y, i, m, dt).0 } else { y[i] }).collect() };
     SampledFriction {
         seal_n: smooth(&seal),
         screw_n_m: smooth(&screw),
