@@ -501,7 +501,7 @@ fn a_healthy_reference_holds_its_regression_on_its_own_halves() {
 /// of the motor's speed predicts. Without fading the rod's own standstill
 /// (the scale's speed) the first 50 ms of the moves, 7 % of the time,
 /// held 91–93 % of the torque channel's weighted residual energy (seed
-/// 9900); with it, 34–48 % on these runs.
+/// 9900); with it, 14–39 % on these runs.
 #[test]
 fn the_nominal_floor_does_not_sit_at_the_move_starts() {
     let rig = nominal_rig();

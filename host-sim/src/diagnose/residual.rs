@@ -238,6 +238,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 .collect();
             sampled_friction(p, &theta_raw, &f_base, m, dt, omega_th)
         });
+        let g_acc = accel_smoother(m);
         let mut rod_speed = Vec::new();
         let mut dir = 1.0;
         let mut last_rev = t[0];
@@ -301,6 +302,9 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 None => (fext, fext, 0.0),
             };
             let iq = iq_raw.as_ref().map(|v| sg(v, i, m, dt));
+            // The torque channel's current smoothed as the accelerations
+            // are (`accel_smoother`); the voltage channel keeps the fit's.
+            let iq_torque = iq_raw.as_ref().map(|v| if phys.is_some() { smooth_with(v, i, &g_acc) } else { sg(v, i, m, dt).0 });
             seg.t.push(t[i]);
             seg.t_rel.push(t[i] - t[m]);
             seg.theta.push(th);
@@ -326,7 +330,7 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             }
             seg.dir.push(dir);
             seg.since_reversal_s.push(t[i] - last_rev);
-            seg.iq.push(iq.map_or(0.0, |q| q.0));
+            seg.iq.push(iq_torque.unwrap_or(0.0));
             seg.iq_logged.push(iq_raw.as_ref().map_or(0.0, |v| v[i]));
             if encoder {
                 seg.theta_logged.push(theta_raw[i]);
@@ -343,8 +347,8 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
                 (None, None) => 0.0,
             });
             match (nominal, &iq) {
-                (Nominal::Physics(p), Some(q)) => {
-                    let y = p.kt * q.0;
+                (Nominal::Physics(p), Some(_)) => {
+                    let y = p.kt * iq_torque.unwrap_or(0.0);
                     yt.push(y);
                     let fr = fric.as_ref().expect("physics nominal");
                     rt.push(y - (p.j_rot * al + p.k * f_ax + p.b_motor() * om + fr.screw_n_m[i]));

@@ -1,5 +1,5 @@
 //! The nominal's friction evaluated sample by sample, then smoothed by the
-//! same quadratic Savitzky–Golay window as the logged current.
+//! same filter as the logged current (`accel_smoother`).
 //!
 //! Friction switches with the direction of motion within a fraction of a
 //! millisecond (the rig's own sign regularisation), and the logged current
@@ -8,10 +8,10 @@
 //! the smoothing leaks the coming motion into the samples before it
 //! starts), so the nominal would switch the friction differently from the
 //! current it is compared with. Smoothing the law's sample-by-sample value
-//! (`smooth(f(ω))`, not `f(smooth(ω))`) treats the friction as the current
-//! is treated.
+//! (`smooth(f(ω))`, not `f(smooth(ω))`) with the current's filter treats
+//! the friction as the current is treated.
 
-use super::savitzky_golay::sg;
+use super::savitzky_golay::{accel_smoother, sg, smooth_with};
 use super::Physics;
 
 /// Half width of the speed the friction laws see, s: short enough to
@@ -61,7 +61,8 @@ pub fn sampled_friction(p: &Physics, theta: &[f64], f_base: &[f64], m: usize, dt
         screw.push(p.b_screw * om + s * (p.drag_n_m + p.mu * p.k * f_nut.abs()));
         sign.push(s);
     }
-    let smooth = |y: &[f64]| -> Vec<f64> { (0..n).map(|i| if i >= m && i + m < n { sg(y, i, m, dt).0 } else { y[i] }).collect() };
+    let g = accel_smoother(m);
+    let smooth = |y: &[f64]| -> Vec<f64> { (0..n).map(|i| smooth_with(y, i, &g)).collect() };
     SampledFriction {
         seal_n: smooth(&seal),
         screw_n_m: smooth(&screw),

@@ -106,3 +106,31 @@ pub fn sg_second(y: &[f64], m: usize, h: f64) -> Vec<f64> {
     }
     out
 }
+
+/// The smoother the second derivative implies: the kernel `g` (half width
+/// m − 1, summing to 1) with `sg(·).2 = Δ²(g ∗ y)/h²`, Δ² the central
+/// second difference. A torque balanced against accelerations from `sg`
+/// is compared like for like only if the current is smoothed by `g` too:
+/// the quadratic fit's value has another frequency response, which
+/// differs by tens of percent at the rod's axial mode and so leaves every
+/// move start's transient in the residual.
+pub fn accel_smoother(m: usize) -> Vec<f64> {
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) / 3.0;
+    let sq: f64 = (0..=2 * m).map(|j| ((j as f64 - mf).powi(2) - s2).powi(2)).sum();
+    let c: Vec<f64> = (0..=2 * m).map(|j| 2.0 * ((j as f64 - mf).powi(2) - s2) / sq).collect();
+    // g_j = Σ_{i<j} (j − i) c_i, for j = −(m−1) … m−1 (index j + m − 1).
+    (1..2 * m)
+        .map(|j| (0..j).map(|i| (j - i) as f64 * c[i]).sum())
+        .collect()
+}
+
+/// `y` smoothed at sample i by a kernel of `accel_smoother` (the ends,
+/// where the kernel does not fit, left as they are).
+pub fn smooth_with(y: &[f64], i: usize, g: &[f64]) -> f64 {
+    let h = g.len() / 2;
+    if i < h || i + h >= y.len() {
+        return y[i];
+    }
+    g.iter().enumerate().map(|(j, w)| w * y[i + j - h]).sum()
+}
