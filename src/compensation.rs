@@ -17,7 +17,7 @@
 //! fault (controlled stop); inputs outside the trained range are clamped by
 //! the forward pass and flagged.
 
-use crate::observer::{self, block::Weights, model, ModelKind};
+use crate::observer::{self, block::Weights, model, ModelKind, NETWORK_INPUTS};
 use crate::params::ControlParams;
 
 /// What one compensation update produced.
@@ -83,15 +83,23 @@ impl Compensator {
         self.shift_m = 0.0;
     }
 
-    /// The observer's inputs, in the order the model takes them, from the
+    /// The observer's inputs, in the order the network takes them, from the
     /// drive's own signals: encoder speed, nut speed and displacement through
-    /// the lead, and the load force (estimate or load cell).
-    pub fn inputs(p: &ControlParams, speed_rad_s: f32, motor_position_m: f32, load_force_n: f32) -> [f32; model::INPUTS] {
-        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n]
+    /// the lead, the load force (estimate or load cell), and the planned
+    /// acceleration of the setpoint generator (a four-input model leaves it
+    /// unused).
+    pub fn inputs(
+        p: &ControlParams,
+        speed_rad_s: f32,
+        motor_position_m: f32,
+        load_force_n: f32,
+        planned_acceleration_m_s2: f32,
+    ) -> [f32; NETWORK_INPUTS] {
+        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n, planned_acceleration_m_s2]
     }
 
     /// One position period.
-    pub fn update(&mut self, p: &ControlParams, inputs: [f32; model::INPUTS], dt_s: f32) -> CompensationOutput {
+    pub fn update(&mut self, p: &ControlParams, inputs: [f32; NETWORK_INPUTS], dt_s: f32) -> CompensationOutput {
         let c = &p.compensation;
         let mut out = CompensationOutput::default();
         let target = if self.enabled && model::META.kind == ModelKind::Error {

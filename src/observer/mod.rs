@@ -2,7 +2,8 @@
 //! of the Gaussian RBF network that `host-sim train` fits.
 //!
 //! Inputs (in this order): motor speed (rad/s), nut speed (m/s), nut
-//! displacement (m), load force (N). Each is clamped to the range it was
+//! displacement (m), load force (N) and, for a model trained with it, the
+//! planned acceleration (m/s²). Each is clamped to the range it was
 //! trained on and mapped to `[-1, 1]`; hidden unit `k` gives
 //! `φ_k = exp(−‖z − c_k‖² / 2σ_k²)`; the output is
 //! `output_offset + output_scale · (bias + Σ w_k φ_k + Σ a_j z_j)` in metres
@@ -14,6 +15,9 @@
 //! another shape than the code that calls it does not compile. That model is
 //! the default; a host may replace it without reflashing by uploading the
 //! same words as a [`block`], which the drive checks and keeps in flash.
+//! The drive runs a network with room for five inputs ([`NETWORK_INPUTS`]);
+//! a four-input model (the compiled one) runs in it with the fifth slot
+//! unused ([`lift`]), predicting bit for bit as on its own.
 
 pub mod block;
 #[rustfmt::skip]
@@ -101,6 +105,56 @@ pub struct Prediction {
     pub valid: bool,
 }
 
+/// The inputs the firmware's network has room for, in order: the paper's
+/// four state variables and the planned acceleration of the setpoint
+/// generator (a dynamic input: the loops' lag at a move start and the
+/// friction's turn at a reversal follow it, not the four static ones).
+pub const NETWORK_INPUTS: usize = 5;
+
+/// Names of the network's inputs (dataset columns), in order. A model
+/// trained on the first four leaves the fifth unused.
+pub const NETWORK_INPUT_NAMES: [&str; NETWORK_INPUTS] =
+    ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n", "planned_acceleration_m_s2"];
+
+/// The inputs the paper's static map uses (the first four).
+pub const STATIC_INPUTS: usize = 4;
+
+/// `m` in the network's five input slots. Slots past `IN` are unused:
+/// range `[0, 0]`, scale 0, no linear term, every centre on `−1` (where an
+/// unused input's normalised value sits), so `(z − c)² = 0` exactly and the
+/// prediction is bit for bit the one of `m` itself. Evaluated by the
+/// compiler for the compiled model (an index out of range fails the build).
+#[allow(clippy::indexing_slicing)]
+pub const fn lift<const IN: usize, const H: usize>(m: &RbfModel<IN, H>) -> RbfModel<NETWORK_INPUTS, H> {
+    let mut out = RbfModel {
+        input_min: [0.0; NETWORK_INPUTS],
+        input_max: [0.0; NETWORK_INPUTS],
+        input_scale: [0.0; NETWORK_INPUTS],
+        centres: [[-1.0; NETWORK_INPUTS]; H],
+        widths: m.widths,
+        log2_decay: m.log2_decay,
+        weights: m.weights,
+        linear: [0.0; NETWORK_INPUTS],
+        bias: m.bias,
+        output_scale: m.output_scale,
+        output_offset: m.output_offset,
+    };
+    let mut j = 0;
+    while j < IN && j < NETWORK_INPUTS {
+        out.input_min[j] = m.input_min[j];
+        out.input_max[j] = m.input_max[j];
+        out.input_scale[j] = m.input_scale[j];
+        out.linear[j] = m.linear[j];
+        let mut k = 0;
+        while k < H {
+            out.centres[k][j] = m.centres[k][j];
+            k += 1;
+        }
+        j += 1;
+    }
+    out
+}
+
 /// The observer's output for inputs `x` (clamped to the trained range).
 /// Non-finite results give 0; see [`evaluate`] for the flags.
 pub fn predict<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32; IN]) -> f32 {
@@ -114,6 +168,12 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
     let mut valid = true;
     let ranges = model.input_min.iter().zip(model.input_max.iter()).zip(model.input_scale.iter());
     for ((zi, &xi), ((&lo, &hi), &scale)) in z.iter_mut().zip(x.iter()).zip(ranges) {
+        if scale == 0.0 {
+            // An unused input (a four-input model run by the five-input
+            // network): it carries nothing, whatever the drive feeds it.
+            *zi = -1.0;
+            continue;
+        }
         let xc = if xi.is_nan() {
             valid = false;
             lo
