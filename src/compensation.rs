@@ -41,6 +41,11 @@ pub struct Compensator {
     enabled: bool,
     shift_m: f32,
     model: &'static Weights,
+    /// Sign of the last nonzero planned velocity (+1 elongation, −1
+    /// contraction; 0 before the first planned move): the observer's fifth
+    /// input, held at rest because the screw's and the seal's friction stay
+    /// turned the way the last move left them.
+    travel_direction: f32,
 }
 
 impl Default for Compensator {
@@ -51,7 +56,19 @@ impl Default for Compensator {
 
 impl Compensator {
     pub const fn new(enabled: bool) -> Self {
-        Self { enabled, shift_m: 0.0, model: &observer::block::COMPILED }
+        Self { enabled, shift_m: 0.0, model: &observer::block::COMPILED, travel_direction: 0.0 }
+    }
+
+    /// The direction of travel after a period whose planned velocity is
+    /// `planned_velocity_m_s`: its sign, or the last one while the plan is
+    /// at rest. Range `[-1, 1]` (0 only before the first planned move).
+    pub fn travel_direction(&mut self, planned_velocity_m_s: f32) -> f32 {
+        if planned_velocity_m_s > 0.0 {
+            self.travel_direction = 1.0;
+        } else if planned_velocity_m_s < 0.0 {
+            self.travel_direction = -1.0;
+        }
+        self.travel_direction
     }
 
     /// The weights the observer runs from the next period on. The shift
@@ -85,17 +102,17 @@ impl Compensator {
 
     /// The observer's inputs, in the order the network takes them, from the
     /// drive's own signals: encoder speed, nut speed and displacement through
-    /// the lead, the load force (estimate or load cell), and the planned
-    /// acceleration of the setpoint generator (a four-input model leaves it
+    /// the lead, the load force (estimate or load cell), and the direction
+    /// of travel ([`Self::travel_direction`]; a four-input model leaves it
     /// unused).
     pub fn inputs(
         p: &ControlParams,
         speed_rad_s: f32,
         motor_position_m: f32,
         load_force_n: f32,
-        planned_acceleration_m_s2: f32,
+        travel_direction: f32,
     ) -> [f32; NETWORK_INPUTS] {
-        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n, planned_acceleration_m_s2]
+        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n, travel_direction]
     }
 
     /// One position period.

@@ -12,7 +12,7 @@
 //!
 //! A block has four inputs (the paper's static map, 75 words: the compiled
 //! model and every block uploaded before the fifth input existed) or five
-//! (with the planned acceleration, 87 words); the input count is part of
+//! (with the direction of travel, 87 words); the input count is part of
 //! its shape and of its structure hash. Either runs in the five-slot
 //! network ([`super::lift`]): the drive keeps and runs every model in that
 //! layout, and the host sees the block in its own.

@@ -3,7 +3,8 @@
 //!
 //! Inputs (in this order): motor speed (rad/s), nut speed (m/s), nut
 //! displacement (m), load force (N) and, for a model trained with it, the
-//! planned acceleration (m/s²). Each is clamped to the range it was
+//! direction of travel (the sign of the last nonzero planned velocity,
+//! −1 … 1). Each is clamped to the range it was
 //! trained on and mapped to `[-1, 1]`; hidden unit `k` gives
 //! `φ_k = exp(−‖z − c_k‖² / 2σ_k²)`; the output is
 //! `output_offset + output_scale · (bias + Σ w_k φ_k + Σ a_j z_j)` in metres
@@ -106,15 +107,17 @@ pub struct Prediction {
 }
 
 /// The inputs the firmware's network has room for, in order: the paper's
-/// four state variables and the planned acceleration of the setpoint
-/// generator (a dynamic input: the loops' lag at a move start and the
-/// friction's turn at a reversal follow it, not the four static ones).
+/// four state variables and the direction of travel (a dynamic input: the
+/// friction that bends the drive train at rest and at a move start turns
+/// with the direction of the last move, which speed, displacement and force
+/// at rest do not tell). Chosen over the planned acceleration by measuring
+/// both (docs/observer.md, "A fifth input").
 pub const NETWORK_INPUTS: usize = 5;
 
 /// Names of the network's inputs (dataset columns), in order. A model
 /// trained on the first four leaves the fifth unused.
 pub const NETWORK_INPUT_NAMES: [&str; NETWORK_INPUTS] =
-    ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n", "planned_acceleration_m_s2"];
+    ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n", "travel_direction"];
 
 /// The inputs the paper's static map uses (the first four).
 pub const STATIC_INPUTS: usize = 4;
