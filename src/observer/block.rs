@@ -41,7 +41,7 @@ pub static COMPILED: Weights = super::lift(&super::model::MODEL);
 /// linear), `inputs + 3` per hidden unit (centre, width, decay, weight),
 /// bias, output scale, offset.
 pub const fn words_for(inputs: usize) -> usize {
-    4 * inputs + HIDDEN * (inputs + 3) + 3
+    4usize.saturating_mul(inputs).saturating_add(HIDDEN.saturating_mul(inputs.saturating_add(3))).saturating_add(3)
 }
 
 /// Words of a five-input block: the layout the drive stores and runs.
@@ -133,7 +133,7 @@ pub const fn structure_hash_for(inputs: usize, source: ForceSource) -> [u8; 8] {
         h = fnv1a(h, name.as_bytes());
         h = fnv1a(h, b",");
         names = rest;
-        n += 1;
+        n = n.saturating_add(1);
     }
     h = fnv1a(h, &(inputs as u32).to_le_bytes());
     h = fnv1a(h, &(HIDDEN as u32).to_le_bytes());

@@ -204,6 +204,19 @@ fn main() -> ! {
         "observer::evaluate (the generated RBF model, 4 inputs)",
         &obs_stats,
     ));
+    let net_input = |i: u32| {
+        let [a, b, c, d] = obs_input(i);
+        [a, b, c, d, if i % 2 == 0 { 1.0 } else { -1.0 }]
+    };
+    let net_stats = each(&m, 400, net_input, |x| {
+        black_box(observe_network(x));
+    });
+    push(row(
+        &m,
+        "observer_network",
+        "observer::evaluate in the drive's five-slot network (the compiled model, fifth input unused), as the position loop runs it",
+        &net_stats,
+    ));
 
     // ---- pieces -----------------------------------------------------------
     let angle = |i: u32| -PI + (i % 997) as f32 * (2.0 * PI / 997.0);
