@@ -18,8 +18,8 @@
 //! Nothing moves at power-up: after any reset the drive waits for a command,
 //! unless `control.startup.run_at_power_up` says otherwise.
 //!
-//! See docs/firmware.md for pins, the power-up sequence, the brake, timing,
-//! flashing and reading the log.
+//! See docs/firmware.md for pins and reading the log, and the files it lists
+//! for the power-up sequence, the brake, timing and flashing.
 
 #![no_std]
 #![no_main]
@@ -110,7 +110,7 @@ async fn run(spawner: Spawner) -> Option<Watchdog> {
     hw::exceptions::enable_fault_exceptions(&mut cp.SCB);
     hw::enable_flash_acceleration();
     if !hw::brake::boot_pin_ignored() {
-        error!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode: the bridge stays off; set nSWBOOT0 = 0, nBOOT0 = 1 (docs/firmware.md, Flashing)");
+        error!("option bytes: the BOOT0 pin (PB8, the brake output) selects the boot mode: the bridge stays off; set nSWBOOT0 = 0, nBOOT0 = 1 (docs/firmware-bringup.md, Flashing)");
     }
 
     let mut board = match board::bring_up(p) {

@@ -91,7 +91,7 @@ fn faulty_runs_against_a_nominal_fitted_on_healthy_runs() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/diagnose_suite");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("cranfield.md"), &out).unwrap();
-    // What the data show (see docs/diagnosis.md): the larger play and the
+    // What the data show (see docs/diagnosis-cranfield.md): the larger play and the
     // missing lubricant both raise the current needed at speed — a
     // speed-dependent (viscous-like) friction increase ranked first — while
     // the smaller play is indistinguishable from healthy.

@@ -1,6 +1,6 @@
 //! Gate waveforms for the oscilloscope: the bridge switching at 50 % on all
 //! three legs for 20 s, with the bus at a low voltage and no motor, so the
-//! dead time can be measured at the MOSFET gates (docs/firmware.md,
+//! dead time can be measured at the MOSFET gates (docs/firmware-bringup.md,
 //! *Measuring the gate waveforms*) before anyone lowers `DEAD_TIME_NS`.
 //!
 //! Refuses to switch unless the bus reads 8–16 V (a current-limited bench
@@ -68,7 +68,7 @@ mod tests {
         );
         assert!(pac::TIM1.bdtr().read().dtg() != 0, "no dead time programmed");
         info!(
-            "switching all legs at 50 % for {=u32} s, dead time {=u32} ns: probe the gates now (docs/firmware.md)",
+            "switching all legs at 50 % for {=u32} s, dead time {=u32} ns: probe the gates now (docs/firmware-bringup.md)",
             SWITCH_S,
             hw::DEAD_TIME_NS
         );

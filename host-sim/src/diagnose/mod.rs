@@ -23,6 +23,7 @@ pub mod log;
 mod outcome;
 pub mod plausible;
 pub mod rank;
+mod reference;
 pub mod refit;
 pub mod regions;
 pub mod replay;
@@ -205,35 +206,7 @@ fn diagnose_split(
     } else {
         segments = split_segments(segments);
     }
-    // The regression nominal judged on its own reference: a channel it
-    // does not hold on is left out (its gap would be the regression's);
-    // with none left, the baseline is broken (`gates::baseline_broken`).
-    let mut reference_gates = Vec::new();
-    if let (Nominal::Regression(reg), Some(r)) = (&nominal, reference) {
-        reference_gates = gates::reference_gates(r, reg)?;
-        let unsound: Vec<usize> = reference_gates
-            .iter()
-            .filter(|g| g.kind == "reference_unsound")
-            .filter_map(|g| CHANNELS.iter().position(|c| Some(*c) == g.channel.as_deref()))
-            .collect();
-        let with_data: Vec<usize> = (0..NCH)
-            .filter(|c| segments.iter().any(|s| s.r[*c].is_some()))
-            .collect();
-        if with_data.iter().any(|c| !unsound.contains(c)) {
-            for s in &mut segments {
-                for &c in &unsound {
-                    s.y[c] = None;
-                    s.r[c] = None;
-                }
-            }
-            for g in &mut reference_gates {
-                if g.kind == "reference_unsound" {
-                    g.kind = "reference_channel_left_out".into();
-                    g.message.push_str("; this channel is left out of the diagnosis");
-                }
-            }
-        }
-    }
+    let reference_gates = reference::judge_regression(&nominal, reference, &mut segments)?;
     let train: Vec<&Segment> = segments.iter().filter(|s| !s.heldout).collect();
     let held: Vec<&Segment> = segments.iter().filter(|s| s.heldout).collect();
     if train.is_empty() || held.is_empty() {
@@ -419,32 +392,10 @@ fn diagnose_split(
             }
         })
         .collect();
-    let mut reference_comparison = Vec::new();
-    if let Some(rl) = reference {
-        let rsegs = residual::build_segments(rl, &nominal, tilt_default_deg)?;
-        let rrefs: Vec<&Segment> = rsegs.iter().collect();
-        for &c in &avail {
-            let mine = regions::split_basis(&all, &all, c);
-            let theirs = regions::split_basis(&rrefs, &all, c);
-            for m in mine {
-                if let Some(t) = theirs
-                    .iter()
-                    .find(|t| t.split == m.split && t.region == m.region)
-                {
-                    reference_comparison.push(RegionComparison {
-                        channel: CHANNELS[c].into(),
-                        split: m.split.into(),
-                        region: m.region.clone(),
-                        rms_log: m.rms,
-                        rms_reference: t.rms,
-                        ratio: if t.rms > 0.0 { m.rms / t.rms } else { f64::NAN },
-                        mean_log: m.mean,
-                        mean_reference: t.mean,
-                    });
-                }
-            }
-        }
-    }
+    let reference_comparison = match reference {
+        Some(rl) => reference::compare_regions(&all, rl, &nominal, tilt_default_deg, &avail)?,
+        None => Vec::new(),
+    };
     let ranking: Vec<RankEntry> = rk.ranked.iter().map(|r| r.0.clone()).collect();
     let top_entry = ranking.first().filter(|_| top.is_some()).cloned();
     let stack_names: Vec<String> = stack_terms

@@ -105,6 +105,9 @@ pub enum DriveCmd {
     /// The observer's weights: status, upload, back to the compiled model.
     #[command(subcommand)]
     Observer(ObserverCmd),
+    /// Identify the cylinder on the drive: `identify stiffness`.
+    #[command(subcommand)]
+    Identify(IdentifyCmd),
     /// enable | disable | calibrate | align | home | startup | stop | clear-faults | comp on|off
     Cmd { name: String, arg: Option<String> },
     /// A planned move to POSITION_M.
@@ -255,6 +258,48 @@ pub enum ObserverCmd {
     Upload { model: PathBuf },
     /// Back to the weights compiled into the image (stored as such).
     Compiled,
+}
+
+#[derive(Subcommand)]
+pub enum IdentifyCmd {
+    /// The cylinder's axial stiffness against its rig file's design: a
+    /// current step above the hold current makes the load ring at the axial
+    /// mode (captured a few times), the same probe runs on the design
+    /// simulated at the payload the hold current says; the compliance ratio
+    /// (f_design / f)² with its uncertainty, and the shipped observer
+    /// weights scaled by it, go to OUT/stiffness.json. Refuses a probe it
+    /// cannot read, saying why. The drive must be enabled, holding its load
+    /// with the rod vertical, away from the stroke's ends.
+    Stiffness {
+        /// The rig file the cylinder was built to; default: the shipped rig.
+        #[arg(long)]
+        params: Option<PathBuf>,
+        #[arg(long, default_value = "out/stiffness")]
+        out: PathBuf,
+        /// Upload the scaled weights as the observer's (the bridge is
+        /// switched off first; stored in flash, verified by CRC).
+        #[arg(long)]
+        upload: bool,
+        /// The step from the hold current, A (positive: the load is thrown
+        /// up; a step down lets it fall and the speed loop faults when it
+        /// takes over again).
+        #[arg(long, default_value_t = crate::trainer::stiffness::STEP_A, allow_negative_numbers = true, value_parser = step_current)]
+        step_a: f64,
+        /// Probes (their spread is part of the uncertainty).
+        #[arg(long, default_value_t = crate::trainer::stiffness::REPEATS, value_parser = clap::builder::TypedValueParser::map(clap::value_parser!(u16).range(2..=10), usize::from))]
+        repeats: usize,
+    },
+}
+
+/// A probe step, A: nonzero and at most 20 A from the hold current (the
+/// drive refuses one beyond its current limit anyway).
+fn step_current(text: &str) -> Result<f64, String> {
+    let v = number(text)?;
+    if v != 0.0 && v.abs() <= 20.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} A: a step of 0 < |step| <= 20 A"))
+    }
 }
 
 #[derive(Subcommand)]

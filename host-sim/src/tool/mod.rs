@@ -18,12 +18,13 @@ pub mod run;
 pub mod scope;
 pub mod stream;
 pub mod stream_cmd;
+pub mod stiffness;
 pub mod stream_loss;
 pub mod test;
 pub mod view;
 pub mod watch_bench;
 
 pub use access::{command, fetch_params, info_json, param_get, param_index, param_list, param_set, param_set_value, reply_text};
-pub use cli::{ConnectArgs, DriveArgs, DriveCmd, ObserverCmd, ParamCmd};
+pub use cli::{ConnectArgs, DriveArgs, DriveCmd, IdentifyCmd, ObserverCmd, ParamCmd};
 pub use run::run_cli;
 pub use scope::{capture, capture_with, signal_by_name, signal_name, CaptureData, SIGNAL_NAMES};

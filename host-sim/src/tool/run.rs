@@ -2,9 +2,9 @@
 //! tool starts itself or over a connection.
 
 use super::access::{command, fetch_one_f32, info_json, param_get, param_list, param_set, reply_text};
-use super::cli::{DriveArgs, DriveCmd, ObserverCmd, ParamCmd};
+use super::cli::{DriveArgs, DriveCmd, IdentifyCmd, ObserverCmd, ParamCmd};
 use super::client::Client;
-use super::{bench, bench_asap, bench_family, moves, test, config_file, observer, params, stream_cmd, stream_loss, view, watch_bench};
+use super::{bench, bench_asap, bench_family, moves, test, config_file, observer, params, stiffness, stream_cmd, stream_loss, view, watch_bench};
 use super::scope::{capture, signal_by_name};
 use crate::config::RigConfig;
 use crate::drive::{self, DriveOptions};
@@ -117,6 +117,13 @@ fn run_on(c: &mut Client, cmd: DriveCmd) -> Result<()> {
                 ObserverCmd::Compiled => observer::use_compiled(c)?,
             };
             println!("{}", observer::describe_status(&s));
+        }
+        DriveCmd::Identify(IdentifyCmd::Stiffness { params, out, upload, step_a, repeats }) => {
+            let design = RigConfig::load_or_nominal(params.as_ref())?;
+            let o = stiffness::ProbeOptions { step_a, repeats, ..Default::default() };
+            let s = stiffness::run(c, &design, &o, upload, &out)?;
+            println!("{}", stiffness::describe(&s));
+            println!("wrote {}", out.join("stiffness.json").display());
         }
         DriveCmd::Param(p) => match p {
             ParamCmd::List => {

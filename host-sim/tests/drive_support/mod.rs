@@ -19,7 +19,14 @@ pub struct Drive {
 impl Drive {
     /// The nominal rig, its parameter store in `store` (none: in memory).
     pub fn start(store: Option<PathBuf>) -> Self {
-        let mut o = DriveOptions::new(RigConfig::nominal().unwrap());
+        Self::start_rig(RigConfig::nominal().unwrap(), store, 0.25)
+    }
+
+    /// A drive of `rig` (a unit other than the rig file's), the rod at
+    /// `position_m`.
+    pub fn start_rig(rig: RigConfig, store: Option<PathBuf>, position_m: f64) -> Self {
+        let mut o = DriveOptions::new(rig);
+        o.initial_position_m = position_m;
         o.pace = Pace::Fast;
         o.commissioned = true;
         o.store = store;

@@ -6,7 +6,7 @@
 //! interrupt toggles the pin once per period (10 kHz at 20 kHz PWM); in every
 //! other case the pin stays low. The external driver is AC-coupled (charge
 //! pump or transformer into the coil switch's gate, with a pull-down on that
-//! gate; see docs/firmware.md, "Holding brake"), so it energises the coil only
+//! gate; see docs/firmware-brake.md), so it energises the coil only
 //! while the edges keep coming. A static level — high or low, driven or
 //! pulled — cannot hold the brake open. So every way the loop can stop closes
 //! the brake within the driver's hold-up time (≈ 1 ms):
@@ -89,7 +89,7 @@ impl ReleaseSignal {
 /// armature is pulled in (brake released), on PA15 (the ESC1's "PWM" input
 /// pad, free when the drive takes its commands over USART2/CAN) with the
 /// internal pull-up: high = brake applied (or the feedback wire broken),
-/// low = released. docs/firmware.md, *Holding brake*, has the circuit.
+/// low = released. docs/firmware-brake.md has the circuit.
 /// False: no feedback fitted, the pin left alone.
 pub const FEEDBACK_FITTED: bool = false;
 pub const FEEDBACK_PORT: pac::gpio::Gpio = pac::GPIOA;

@@ -19,7 +19,7 @@ pub const BAUD: u32 = 921_600;
 pub const TX_QUEUE_LEN: usize = 512;
 
 /// USART2 receive ring (DMA, circular): 5.6 ms of bytes at 921 600 Bd
-/// (docs/firmware.md, *USART2*).
+/// (docs/firmware-comms.md, *USART2*).
 pub const RX_RING_LEN: usize = 512;
 
 /// FDCAN1's receive FIFO 0 on the STM32G4: three frames (fixed by the

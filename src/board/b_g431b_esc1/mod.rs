@@ -121,7 +121,7 @@ pub const TIME_DRIVER_PRIORITY: Priority = Priority::P4;
 /// crossings (the current loop's integrator takes it up).
 ///
 /// Lower it only after measuring the gate waveforms of the board in hand
-/// (docs/firmware.md, *Measuring the gate waveforms*), and never below
+/// (docs/firmware-bringup.md, *Measuring the gate waveforms*), and never below
 /// [`DEAD_TIME_FLOOR_NS`]: the build refuses that.
 pub const DEAD_TIME_NS: u32 = 800;
 

@@ -73,7 +73,7 @@ pub fn groups() -> Vec<Group> {
             };
             shipped::run(r, weights, a.seed)
         }),
-        ("scaled", "compiled weights scaled by the compliance ratio the drive identifies (lowering current step against the rig file's design), friction identified", |r, a| {
+        ("scaled", "compiled weights scaled by the compliance ratio `drive identify stiffness` reads on a simulated drive of the rig (current step above the hold current against the rig file's design), friction identified", |r, a| {
             scaled::run(r, &RigConfig::load_or_nominal(a.params.as_ref())?, a.seed)
         }),
         ("retrained", "weights retrained from the rig's own logs (route: identify friction, log, dataset-from-logs, train --hidden 8, upload, verify)", |r, a| {

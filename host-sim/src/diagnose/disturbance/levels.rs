@@ -1,0 +1,207 @@
+//! The levels of a piecewise-constant disturbance between change points,
+//! cross-validated in time (alternate blocks of each interval predict
+//! each other), per channel or as one force through the nominal model.
+
+use super::Steps;
+use crate::diagnose::effects::{Effect, MAXP};
+use crate::diagnose::fit::ChannelPred;
+use crate::diagnose::residual::{sg_smooth, Nominal, Segment, NCH, TORQUE};
+
+/// How the levels of an interval act on the channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Levels {
+    /// One level per channel and interval, each channel on its own.
+    PerChannel,
+    /// One force per interval acting through the nominal model on torque
+    /// and position together: the load offset's regressors
+    /// (`k (1 + μ sgn ω sgn F_nut)` on the torque, `−∂δ/∂F` on the
+    /// position: the force winds the drive train up as it loads the
+    /// motor). Physics nominal only.
+    Force,
+}
+
+impl Levels {
+    pub fn name(self) -> &'static str {
+        match self {
+            Levels::PerChannel => "per_channel",
+            Levels::Force => "force",
+        }
+    }
+}
+/// The channels whose residual is Savitzky–Golay smoothed (the torque
+/// channel: the current is smoothed, the accelerations differentiated
+/// over ±m samples), so a step of the disturbance shows there as the
+/// filter's step response: the prediction is smoothed alike. The position
+/// channel (scale − encoder) is raw.
+pub fn smoothed(c: usize) -> bool {
+    c == TORQUE
+}
+
+/// Per-sample gain of the levels on channel `c` (1 per channel, or the
+/// force's regressor).
+fn gain(mode: Levels, s: &Segment, i: usize, c: usize, nominal: &Nominal) -> f64 {
+    match mode {
+        Levels::PerChannel => 1.0,
+        Levels::Force => {
+            let mut buf = [[0.0; NCH]; MAXP];
+            Effect::LoadOffset.regressors(0.0, s, i, nominal, &mut buf);
+            buf[0][c]
+        }
+    }
+}
+
+/// Cross-validated piecewise-constant prediction of the channels `chans`
+/// of one segment. Every interval between change points is cut into
+/// blocks of twice the smoothing window of alternating parity; the levels
+/// of parity p (per channel, or one force for all channels) are fitted on
+/// parity-p samples only and form a signal over the whole segment, which
+/// predicts the samples of the other parity (smoothed where the channel's
+/// residual is smoothed). Returns the prediction per channel, the levels
+/// (channel, level on all of an interval's samples: N for `Force`, the
+/// channel's own unit for `PerChannel`) and every change point with the
+/// weighted residual energy it explains.
+#[allow(clippy::too_many_arguments)]
+pub fn cv_levels(
+    s: &Segment,
+    r: &[Option<Vec<f64>>; NCH],
+    chans: &[usize],
+    cps: &[usize],
+    mode: Levels,
+    nominal: &Nominal,
+    w: &[f64; NCH],
+) -> (ChannelPred, Vec<(usize, usize, usize, f64)>, Steps) {
+    let n = s.len();
+    let b = 2 * (2 * s.sg_m + 1);
+    let mut bounds = vec![0];
+    bounds.extend(cps.iter().copied().filter(|i| *i > 0 && *i < n));
+    bounds.push(n);
+    let parity = |a: usize, i: usize| ((i - a) / b) % 2;
+    // Gains once per sample and channel.
+    let g: Vec<Vec<f64>> = (0..NCH)
+        .map(|c| {
+            if chans.contains(&c) {
+                (0..n).map(|i| gain(mode, s, i, c, nominal)).collect()
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+    // Level signals per parity: per channel (PerChannel) or one force
+    // (stored under every channel).
+    let mut sig = [
+        [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+        [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+    ];
+    let mut levels = Vec::new();
+    let mut steps = Vec::new();
+    let mut last: Option<[(f64, f64); NCH]> = None;
+    for iv in bounds.windows(2) {
+        let (a, e) = (iv[0], iv[1]);
+        // Normal equations per parity and per channel (summed for Force).
+        let mut num = [[0.0; NCH]; 2];
+        let mut den = [[0.0; NCH]; 2];
+        for &c in chans {
+            let Some(x) = &r[c] else { continue };
+            let wc = if mode == Levels::Force { w[c] } else { 1.0 };
+            for i in a..e {
+                let p = parity(a, i);
+                let ww = (wc * s.weight(c, i)).powi(2);
+                num[p][c] += ww * g[c][i] * x[i];
+                den[p][c] += ww * g[c][i] * g[c][i];
+            }
+        }
+        let lv = |p: usize, c: usize| match mode {
+            Levels::PerChannel => {
+                if den[p][c] > 0.0 {
+                    num[p][c] / den[p][c]
+                } else {
+                    0.0
+                }
+            }
+            Levels::Force => {
+                let (nu, de): (f64, f64) = (num[p].iter().sum(), den[p].iter().sum());
+                if de > 0.0 {
+                    nu / de
+                } else {
+                    0.0
+                }
+            }
+        };
+        for (p, sp) in sig.iter_mut().enumerate() {
+            for &c in chans {
+                let l = lv(p, c);
+                sp[c][a..e].iter_mut().for_each(|v| *v = l);
+            }
+        }
+        // The interval's level on all its samples, per channel (the
+        // data behind it: its weighted Σ g²), for the reported levels and
+        // the change points' weight.
+        let whole: [(f64, f64); NCH] = std::array::from_fn(|c| {
+            let (nu, de) = match mode {
+                Levels::PerChannel => (num[0][c] + num[1][c], den[0][c] + den[1][c]),
+                Levels::Force => (
+                    num[0].iter().chain(&num[1]).sum(),
+                    den[0].iter().chain(&den[1]).sum(),
+                ),
+            };
+            (if de > 0.0 { nu / de } else { 0.0 }, de)
+        });
+        if let Some(prev) = last.filter(|_| a > 0) {
+            // Between-interval sum of squares: how much weighted residual
+            // energy this change point explains (splitting the two
+            // intervals against one level over both).
+            let e: f64 = match mode {
+                Levels::PerChannel => chans
+                    .iter()
+                    .map(|&c| {
+                        let ((la, da), (lb, db)) = (prev[c], whole[c]);
+                        if da + db > 0.0 {
+                            w[c] * w[c] * da * db / (da + db) * (la - lb).powi(2)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .sum(),
+                Levels::Force => chans.first().map_or(0.0, |&c| {
+                    let ((la, da), (lb, db)) = (prev[c], whole[c]);
+                    if da + db > 0.0 {
+                        da * db / (da + db) * (la - lb).powi(2)
+                    } else {
+                        0.0
+                    }
+                }),
+            };
+            steps.push((a, e));
+        }
+        last = Some(whole);
+        // Every channel's level (one force under each channel for `Force`).
+        for &c in chans {
+            if whole[c].1 > 0.0 {
+                levels.push((c, a, e, whole[c].0));
+            }
+        }
+    }
+    let pred = std::array::from_fn(|c| {
+        let x = r[c].as_ref()?;
+        if !chans.contains(&c) {
+            return Some(vec![0.0; x.len()]);
+        }
+        let sm: [Vec<f64>; 2] = std::array::from_fn(|p| {
+            let v: Vec<f64> = (0..n).map(|i| g[c][i] * sig[p][c][i]).collect();
+            if smoothed(c) {
+                sg_smooth(&v, s.sg_m)
+            } else {
+                v
+            }
+        });
+        // Which interval (and so which parity origin) each sample is in.
+        let mut out = vec![0.0; n];
+        for iv in bounds.windows(2) {
+            for (i, o) in out.iter_mut().enumerate().take(iv[1]).skip(iv[0]) {
+                *o = sm[1 - parity(iv[0], i)][i];
+            }
+        }
+        Some(out)
+    });
+    (pred, levels, steps)
+}
