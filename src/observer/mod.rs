@@ -166,15 +166,19 @@ pub fn predict<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32
 
 /// The observer's output with the clamping and validity flags.
 pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32; IN]) -> Prediction {
-    let mut z = [0.0_f32; IN];
+    // Unused slots stay at −1; the linear term is summed as each input is
+    // normalised, in input order (one pass over the inputs, not two).
+    let mut z = [-1.0_f32; IN];
+    let mut acc = model.bias;
     let mut clamped = false;
     let mut valid = true;
     let ranges = model.input_min.iter().zip(model.input_max.iter()).zip(model.input_scale.iter());
-    for ((zi, &xi), ((&lo, &hi), &scale)) in z.iter_mut().zip(x.iter()).zip(ranges) {
+    for (((zi, &xi), ((&lo, &hi), &scale)), &a) in z.iter_mut().zip(x.iter()).zip(ranges).zip(model.linear.iter()) {
         if scale == 0.0 {
             // An unused input (a four-input model run by the five-input
-            // network): it carries nothing, whatever the drive feeds it.
-            *zi = -1.0;
+            // network): it carries nothing, whatever the drive feeds it;
+            // `a · (−1)`, as its normalised value −1 gives.
+            acc -= a;
             continue;
         }
         let xc = if xi.is_nan() {
@@ -190,10 +194,7 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
             xi
         };
         *zi = (xc - lo) * scale - 1.0;
-    }
-    let mut acc = model.bias;
-    for (&a, &zi) in model.linear.iter().zip(z.iter()) {
-        acc += a * zi;
+        acc += a * *zi;
     }
     let units = model.centres.iter().zip(model.log2_decay.iter()).zip(model.weights.iter());
     for ((c, &decay), &w) in units {
