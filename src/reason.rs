@@ -170,6 +170,9 @@ reasons! {
     ObserverTrainedOnLoadCell = "weights trained on the load cell, but control.compensation.force_from_estimate = true feeds the observer the drive's force estimate: upload weights trained on the estimate, or set force_from_estimate false",
     ObserverTrainedOnEstimate = "weights trained on the drive's force estimate, but control.compensation.force_from_estimate = false feeds the observer the load cell: set force_from_estimate true first, or upload weights trained on the load cell",
     ObserverWeightsForOtherForce = "uploaded observer weights run, trained for the present force input: switch back to the compiled weights (observer compiled) or upload weights for the new force input first",
+
+    // ---- a test asked before the axis has held still since `Enable` ----
+    AxisNotYetSettled = "the axis has not yet held still since Enable (the start-up torque watch still runs): a test from here would carry the load's hand-over from the brake",
 }
 
 impl core::fmt::Display for Reason {

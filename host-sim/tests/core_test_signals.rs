@@ -377,6 +377,50 @@ fn tests_are_refused_when_not_running_or_beyond_their_bounds() {
     assert_eq!(c.start_test(step).map_err(|r| r.text()), Err("a move or stream is in progress"));
 }
 
+/// Right after `Enable` the load passes from the brake to the loops. A
+/// test asked then waits: first for the brake (`BrakeOpening`), then until
+/// the loops have held the rod still once (`AxisNotYetSettled`), so the
+/// response it captures is the loop's own and not the hand-over's.
+#[test]
+fn a_test_waits_until_the_axis_has_held_still_after_enable() {
+    let rig = RigConfig::nominal().unwrap();
+    let mut plant = host_sim::plant::Plant::try_new(rig.plant.clone(), 7).unwrap();
+    plant.set_initial_state((X0_M - rig.plant.stroke.initial_position_m) / rig.plant.metres_per_rad(), std::f64::consts::FRAC_PI_2);
+    let controller = Controller::try_new(host_sim::sim::commissioned_control(rig.control.clone(), &plant)).unwrap();
+    let mut cl = ClosedLoop::new(controller, plant, rig.plant.inverter.nominal_bus_voltage_v);
+    cl.controller.command(Command::SetHome { position_m: X0_M as f32 }).unwrap();
+    cl.controller.command(Command::Enable).unwrap();
+    let step = TestSignal::PositionStep { distance_m: 0.001, duration_s: 0.2 };
+    let mut seen = std::vec::Vec::new();
+    let mut accepted_at = None;
+    for k in 0..40_000u32 {
+        cl.step();
+        if cl.controller.mode() != Mode::Running {
+            continue;
+        }
+        match cl.controller.start_test(step) {
+            Ok(()) => {
+                accepted_at = Some(k);
+                break;
+            }
+            Err(r) => {
+                if seen.last() != Some(&r.text()) {
+                    seen.push(r.text());
+                }
+            }
+        }
+    }
+    let k = accepted_at.expect("the test was never accepted within 2 s of Enable");
+    assert_eq!(
+        seen,
+        ["the brake is still opening", servo_core::reason::Reason::AxisNotYetSettled.text()],
+        "refusals in order, each until its condition ended"
+    );
+    // Accepted from rest: the rod is held, not still taking up its load.
+    let speed = cl.controller.telemetry().speed_rad_s;
+    assert!(speed.abs() < rig.control.commutation.settle_speed_rad_s, "accepted at period {k} with the rotor at {speed} rad/s");
+}
+
 #[test]
 fn disable_aborts_a_test() {
     let mut cl = holding();

@@ -76,6 +76,29 @@ fn a_force_where_a_current_was_logged_is_refused_naming_the_column_and_scale() {
 }
 
 #[test]
+fn a_signal_logged_in_one_log_and_not_the_other_is_refused_naming_the_column() {
+    let reference = log("ref.csv", 1000.0, 6.0, 1.0, false);
+    let mut without = reference.columns.clone();
+    without.remove("load_force_n");
+    let without = Log::from_columns("ref_without_load.csv", without).unwrap();
+    let reg = fit_regression(&without).unwrap();
+    // The log carries a load the reference's nominal has no coefficient for.
+    let other = log("log.csv", 1000.0, 6.0, 1.0, false);
+    let e = diagnose_against(&other, None, Some(&without), Nominal::Regression(reg), 0.0)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("`load_force_n`") && e.contains("logged in `log.csv` but not in the reference `ref_without_load.csv`"), "{e}");
+    // Phase currents stand for the q current.
+    let mut phases = reference.columns.clone();
+    let iq = phases.remove("current_q_a").unwrap();
+    phases.insert("current_a_a".into(), iq.clone());
+    phases.insert("current_b_a".into(), iq);
+    let phases = Log::from_columns("phases.csv", phases).unwrap();
+    assert!(host_sim::diagnose::compare::comparable(&reference, &phases, "held-out log").is_ok());
+}
+
+#[test]
 fn a_reference_too_short_or_one_way_is_refused_naming_the_minimum() {
     let min = MIN_SAMPLES_PER_REGRESSOR * NREG;
     let short = log("short.csv", 1000.0, 0.15, 1.0, false);
@@ -103,4 +126,13 @@ fn the_torque_channel_is_never_explained_by_the_logged_current() {
     assert_eq!(input_features(s, TORQUE), input_features(&changed, TORQUE));
     // The voltage channel may use the current (its output is u_q).
     assert_ne!(input_features(s, VOLTAGE), input_features(&changed, VOLTAGE));
+}
+
+#[test]
+fn a_log_too_short_for_two_parts_is_refused_naming_the_minimum() {
+    // 20 samples at 1 kHz: the ±10-sample window twice plus 5 needs 25.
+    let short = log("short.csv", 1000.0, 0.02, 1.0, false);
+    let p = Physics::from_rig(&nominal_rig());
+    let e = diagnose_against(&short, None, None, Nominal::Physics(p), 0.0).err().expect("refused").to_string();
+    assert!(e.contains("short.csv") && e.contains("20 rows") && e.contains("at least 25 samples"), "{e}");
 }

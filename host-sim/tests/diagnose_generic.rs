@@ -1,8 +1,11 @@
 //! Each generic-structure fitter alone against a closed-form synthetic
 //! remainder: a frame resonance driven by the logged thrust (integrated
 //! here by RK4, not by the fitter's scheme), a torque gain warming with a
-//! first-order time constant, and the cases that must not be named — a
-//! constant gain (a gain error, not a drift) and white noise.
+//! first-order time constant, a count loss, a scale rounded coarser than
+//! the rig file, and the cases that must not be named — a constant gain (a
+//! gain error, not a drift), white noise, a lost motion, a force step, a
+//! ramp, a column at the rig's own resolution or unrounded, and a rounding
+//! buried under another cause's floor.
 
 mod diagnose_support;
 
@@ -377,4 +380,62 @@ fn counts_lost_once_are_named_with_their_size_and_nothing_else_is() {
     refused(&count_case(53, &loss(4.3, lost), &|t| p.k * loss(4.3, lost)(t) / c), "a force");
     // A drift of the same size over the run.
     refused(&count_case(54, &|t| lost * t / LEN_S, &|_| 0.0), "not sharp");
+}
+
+/// A rod moving back and forth over 0.1 m, the scale logging it rounded to
+/// `step` (`None`: as it is), and a position remainder of that rounding
+/// plus the nominal's own white floor of 0.3 µm × `floor_x`.
+fn quantised_case(seed: u64, step: Option<f64>, floor_x: f64) -> Vec<GenericFit> {
+    let p = Physics::from_rig(&nominal_rig());
+    let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+    let mut seg = |phase: f64| {
+        let iq = current(&mut rng);
+        let n = iq.len();
+        let x: Vec<f64> = (0..n).map(|k| 0.25 + 0.05 * (std::f64::consts::TAU * 0.4 * k as f64 * DT + phase).sin()).collect();
+        let logged: Vec<f64> = x.iter().map(|v| step.map_or(*v, |q| q * (v / q).round())).collect();
+        let floor = noise(&mut rng, n, 3e-7 * floor_x);
+        let pos: Vec<f64> = (0..n).map(|k| floor[k] + logged[k] - x[k]).collect();
+        let tn = torque_nominal(&iq, &p);
+        let mut s = segment(0.0, iq, &tn, noise(&mut rng, n, 1e-3), pos);
+        s.scale_logged = logged;
+        s
+    };
+    let (train, held) = (seg(0.0), seg(1.0));
+    diagnose_pair(train, held, &p)
+}
+
+#[test]
+fn a_lattice_is_found_with_its_step_and_noise_has_none() {
+    use host_sim::diagnose::generic::lattice;
+    let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(61);
+    let x: Vec<f64> = (0..8000).map(|k| 0.3 * (k as f64 * 1e-3).sin() + 1e-5 * rng.random::<f64>()).collect();
+    for (q, offset) in [(7e-6, 0.0), (2.5e-5, 3.3e-6), (0.0126, 0.001)] {
+        let v: Vec<f64> = x.iter().map(|x| offset + q * ((x - offset) / q).floor()).collect();
+        let l = lattice(&v).unwrap_or_else(|| panic!("no lattice at {q}"));
+        assert!((l.step / q - 1.0).abs() < 1e-3, "step {} against {q}", l.step);
+        assert!(l.score > 0.99, "{l:?}");
+    }
+    assert_eq!(lattice(&x), None, "an unrounded, noisy signal sits on no lattice");
+}
+
+#[test]
+fn a_scale_rounded_coarser_than_the_rig_is_named_quantisation_and_nothing_else_is() {
+    // 8 µm where the rig file says 1 µm: named, with its step.
+    let fits = quantised_case(62, Some(8e-6), 1.0);
+    let g = named(&fits).unwrap_or_else(|| panic!("nothing named: {fits:#?}"));
+    assert_eq!((g.class.as_str(), g.column.as_deref()), ("quantisation", Some("terminal_position_m")), "{fits:#?}");
+    assert!((g.params["step"] / 8e-6 - 1.0).abs() < 0.01, "step {:.3e}", g.params["step"]);
+    // The same rounding in the log at the rig's own 1 µm, or no rounding
+    // at all: no quantisation is fitted.
+    for (seed, step) in [(63, Some(1e-6)), (64, None)] {
+        let fits = quantised_case(seed, step, 1.0);
+        assert!(fits.iter().all(|g| g.class != "quantisation"), "{step:?}: {fits:#?}");
+    }
+    // A scale at 3× the rig's step under a floor of another cause 30× its
+    // rounding: the lattice is there, but it accounts for little of the
+    // remainder and names nothing.
+    let fits = quantised_case(65, Some(3e-6), 10.0);
+    let g = fits.iter().find(|g| g.class == "quantisation").expect("quantisation fitted");
+    assert!(g.remainder_shrink_pct < 5.0, "{g:?}");
+    assert!(named(&fits).is_none_or(|n| n.class != "quantisation"), "{fits:#?}");
 }

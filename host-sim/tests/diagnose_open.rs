@@ -190,7 +190,7 @@ fn run_case(spec: Spec) -> Outcome {
         generic_named: named.as_ref().map(|n| n.0.clone()),
         generic_params: named.as_ref().map_or(String::new(), |n| n.1.iter().map(|(k, x)| format!("{k}={x:.4}")).collect::<Vec<_>>().join(", ")),
         generic_param_err_pct: param_err,
-        generic_fits: s.generic.iter().take(4).map(|g| format!("{} on {}: remainder {:.1} % (train {:.1} %), gap {:.1} % {:?} beyond {:?}", g.class, g.channel, g.remainder_shrink_pct, g.train_shrink_pct, g.primary_shrink_pct, g.params, g.beyond_pct)).collect(),
+        generic_fits: s.generic.iter().take(6).map(|g| format!("{} on {}: remainder {:.1} % (train {:.1} %), gap {:.1} % {:?} beyond {:?}", g.class, g.channel, g.remainder_shrink_pct, g.train_shrink_pct, g.primary_shrink_pct, g.params, g.beyond_pct)).collect(),
         case: name,
         family,
         category,
@@ -225,6 +225,9 @@ fn run_case(spec: Spec) -> Outcome {
         wall_s: t0.elapsed().as_secs_f64(),
     }
 }
+
+/// Generic classes scored apart from the four the figure is on.
+const APART: [&str; 2] = ["count_loss", "quantisation"];
 
 fn pct(a: usize, b: usize) -> f64 {
     if b == 0 {
@@ -302,19 +305,26 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
         .count();
     // Truths a generic structure should name (sensor delay, resonance,
     // torque-constant drift, a load offset held out = a constant force).
-    let generic: Vec<&Outcome> = out.iter().filter(|o| o.generic_truth.is_some() && o.generic_truth.as_deref() != Some("count_loss")).collect();
-    // Counts lost once (the encoder miscount burst), scored apart from the
-    // four classes above; and the cases with no count loss it named.
-    let count_loss: Vec<&Outcome> = out.iter().filter(|o| o.generic_truth.as_deref() == Some("count_loss")).collect();
+    let generic: Vec<&Outcome> = out.iter().filter(|o| o.generic_truth.as_deref().is_some_and(|g| !APART.contains(&g))).collect();
+    // Counts lost once (the encoder miscount burst) and a quantised column,
+    // each scored apart from the four classes above: its truths named with
+    // the parameter within 20 %, and the cases without it that it named.
     let right_within = |o: &&&Outcome| o.generic_named.is_some() && o.generic_named == o.generic_truth && o.generic_param_err_pct.is_some_and(|e| e <= 20.0);
-    let count_loss_ok = count_loss.iter().filter(right_within).count();
-    let count_loss_false: Vec<String> = out.iter().filter(|o| o.generic_named.as_deref() == Some("count_loss") && o.generic_truth.as_deref() != Some("count_loss")).map(|o| o.case.clone()).collect();
+    let apart: Vec<(&str, Vec<&Outcome>, usize, Vec<String>)> = APART
+        .iter()
+        .map(|class| {
+            let truths: Vec<&Outcome> = out.iter().filter(|o| o.generic_truth.as_deref() == Some(*class)).collect();
+            let ok = truths.iter().filter(right_within).count();
+            let false_named = out.iter().filter(|o| o.generic_named.as_deref() == Some(*class) && o.generic_truth.as_deref() != Some(*class)).map(|o| o.case.clone()).collect();
+            (*class, truths, ok, false_named)
+        })
+        .collect();
     let generic_ok = generic.iter().filter(|o| o.generic_named.is_some() && o.generic_named == o.generic_truth).count();
     let generic_ok_param = generic
         .iter()
         .filter(|o| o.generic_named.is_some() && o.generic_named == o.generic_truth && o.generic_param_err_pct.is_some_and(|e| e <= 20.0))
         .count();
-    let figures = serde_json::json!({
+    let mut figures = serde_json::json!({
         "cases": n,
         "confusion": {
             "named_right": 0,
@@ -342,15 +352,17 @@ fn summarize(out: &[Outcome], wall_s: f64, title: &str) -> (serde_json::Value, S
         "nominal_named_generic": out.iter().filter(|o| o.family == "nominal" && o.generic_named.is_some()).count(),
         "generic_named_right_pct": pct(generic_ok, generic.len()),
         "generic_named_right_param_within_20pct_pct": pct(generic_ok_param, generic.len()),
-        "count_loss_cases": count_loss.len(),
-        "count_loss_named_right_param_within_20pct": count_loss_ok,
-        "count_loss_named_without_one": count_loss_false,
         "wall_s": wall_s,
         "outcomes": out,
     });
     let mut rep = format!("# {title}\n\n");
-    if !count_loss.is_empty() {
-        let _ = writeln!(rep, "Count loss: named with the lost angle within 20 % {count_loss_ok}/{}: {}. Named where no counts were lost: {}.\n", count_loss.len(), count_loss.iter().map(|o| format!("{} ({})", o.generic_named.as_deref().unwrap_or("none"), o.generic_params)).collect::<Vec<_>>().join("; "), count_loss_false.len());
+    for (class, truths, ok, false_named) in &apart {
+        figures[format!("{class}_cases")] = truths.len().into();
+        figures[format!("{class}_named_right_param_within_20pct")] = (*ok).into();
+        figures[format!("{class}_named_without_one")] = serde_json::json!(false_named);
+        if !truths.is_empty() {
+            let _ = writeln!(rep, "{class}: named with its parameter within 20 % {ok}/{}: {}. Named where there was none: {} {:?}.\n", truths.len(), truths.iter().map(|o| format!("{} ({}; err {})", o.generic_named.as_deref().unwrap_or("none"), o.generic_params, o.generic_param_err_pct.map_or("–".into(), |e| format!("{e:.1} %")))).collect::<Vec<_>>().join("; "), false_named.len(), false_named);
+        }
     }
     let _ = writeln!(rep, "Generic structures: named by the right class {generic_ok}/{}, with the parameter within 20 % {generic_ok_param}/{}: {}.\n", generic.len(), generic.len(), generic.iter().map(|o| format!("{} → {} ({}; err {})", o.case, o.generic_named.as_deref().unwrap_or("none"), o.generic_params, o.generic_param_err_pct.map_or("–".into(), |e| format!("{e:.0} %")))).collect::<Vec<_>>().join("; "));
     let _ = writeln!(rep, "{n} cases, wall {wall_s:.1} s. Confusion: named right 0 (the truth is never in the ranked library), disturbance-modelled {}, honestly unexplained {}, wrong {} ({:.1} %).\n", count("disturbance_modelled"), count("honestly_unexplained"), count("wrong"), pct(count("wrong"), n));
@@ -526,7 +538,8 @@ const GENERIC_HOLDOUT_SEED_BASE: u64 = 700;
 
 /// The truths a generic structure should name — sensor delay, structural
 /// resonance, torque-constant drift, a load offset held out of the library
-/// (a constant unmeasured force) — four draws each.
+/// (a constant unmeasured force), and apart from them an encoder miscount
+/// and a quantised column — four draws each, with the nominal rig.
 /// `DIAGNOSE_GENERIC_SET=tuning|seen|holdout` (default all three);
 /// `DIAGNOSE_GENERIC_SEED=N` runs the draws from seed N alone.
 #[test]
@@ -557,6 +570,7 @@ fn generic_structures() {
             }
             specs.push(Spec::HeldOut(Effect::LoadOffset, base + k));
             specs.push(Spec::Novel(Novel::EncoderMiscount, base + k));
+            specs.push(Spec::Novel(Novel::Quantisation, base + k));
             specs.push(Spec::Nominal(base + k));
         }
         let out: Vec<Outcome> = specs.into_iter().map(run_case).collect();

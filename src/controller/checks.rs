@@ -288,38 +288,39 @@ impl Controller {
     /// speed: its torque `1.5 p² ψ² ω / R` grows with the speed, so a load
     /// `T` sinks at `ω = T R / (1.5 p² ψ²)` (≈ 12 mm/s at rated load on the
     /// nominal motor, more on a hot winding or a weak magnet) through the
-    /// brake's engage time, most of the half-millimetre budget. A reversed
-    /// torque (the watch saw the rod pulled away by the load and the push
-    /// together) is a known inversion: the angle turned by half a turn makes
-    /// the torque act with q again, exactly for a half-turn error and within
-    /// a quarter turn of it for any error beyond a quarter. The loops hold
-    /// with it while the brake closes (`Braking`, the fault latched, the
-    /// brake's engage time running from the verdict), watched as before: if
-    /// the turned angle does no better, the bridge goes off with the short
-    /// circuit. A missing torque (an error near a quarter turn, where the
-    /// half-turned angle makes none either) or a verdict on the closed brake
-    /// switches off at once. The user's stored offset is put back when the
-    /// bridge goes off.
+    /// brake's engage time, most of the half-millimetre budget. The watch's
+    /// verdict is an angle error, reversed or missing torque, that a turned
+    /// angle undoes ([`crate::protection::TorqueWatch::turn`]): the loops
+    /// hold on it while the brake closes (`Braking`, the fault latched, the
+    /// brake's engage time running from the first verdict), watched as
+    /// before. When the turns are spent the bridge goes off with the short
+    /// circuit, as it does at once for a verdict on the closed brake. The
+    /// user's stored offset is put back when the bridge goes off.
     #[inline(never)]
     fn torque_inconsistent(&mut self, reversed: bool) {
-        if self.torque_watch.turned() {
-            // The turned angle did no better: the fault is latched already.
-            self.switch_off();
-            return;
-        }
-        if !(reversed && self.mode == Mode::Running && self.params.brake.fitted) {
+        let first = !self.torque_watch.turned();
+        if first && !(self.mode == Mode::Running && self.params.brake.fitted) {
             self.raise(FaultSet::WRONG_DIRECTION);
             return;
         }
+        let emf_d_v = self.voltage_dq.d - self.params.motor.phase_resistance_ohm * self.current_dq.d;
+        let turned = self.torque_watch.turn(reversed, self.params.encoder.electrical_offset_rad, emf_d_v, self.speed_rad_s());
+        let Some(o) = turned else {
+            // The turned angles did no better: the fault is latched already.
+            self.switch_off();
+            return;
+        };
         self.latch(FaultSet::WRONG_DIRECTION);
-        let o = self.params.encoder.electrical_offset_rad;
-        self.torque_watch.arm_turned(o);
-        let pi = core::f32::consts::PI;
-        self.params.encoder.electrical_offset_rad = if o > 0.0 { o - pi } else { o + pi };
-        let v = self.speed_rad_s() * self.params.metres_per_rad();
+        self.params.encoder.electrical_offset_rad = o;
+        // The first verdict comes at a few mm/s: the stop ramps from there.
+        // A later one finds the brake already closing; the rod is held
+        // where it is, the brake left closing.
+        let v = if first { self.speed_rad_s() * self.params.metres_per_rad() } else { 0.0 };
         self.start_holding(self.hold_current_q_a);
         self.stop = StopRamp::new(self.position_command_m, v, self.params.faults.stop_deceleration_m_s2);
-        self.brake_periods = 0;
+        if first {
+            self.brake_periods = 0;
+        }
         self.set_mode(Mode::Braking);
     }
 

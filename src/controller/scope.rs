@@ -97,6 +97,13 @@ impl Controller {
         if self.brake_opening() {
             return Err(Reason::BrakeOpening);
         }
+        // A test moves the rod on purpose, as homing does: it waits until
+        // the loops have held it still once after the brake let go, so its
+        // response is the loop's alone and the torque watch judges the
+        // start-up undisturbed.
+        if self.torque_watch.watching() {
+            return Err(Reason::AxisNotYetSettled);
+        }
         let duration_s = TestRun::duration_s(&signal);
         if !(duration_s > 0.0 && duration_s <= TEST_DURATION_MAX_S) {
             return Err(Reason::DurationOutOfRange);

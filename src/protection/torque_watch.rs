@@ -50,10 +50,21 @@
 //! torque is missing (an error near a quarter turn), and at the load's plus
 //! the push's when it is reversed (near half a turn): the growth of the
 //! verdict's look against the midpoint of the two tells them apart
-//! ([`TorqueWatchVerdict::Reversed`]). The controller reacts to a reversed
-//! torque by holding on the half-turned angle while the brake closes, watched
-//! again ([`TorqueWatch::arm_turned`]), and to anything else by switching
-//! the bridge off with the winding shorted through the brake's engage time.
+//! ([`TorqueWatchVerdict::Reversed`]).
+//!
+//! Either error is an angle the drive can turn away, so the controller holds
+//! the rod under control on a turned angle while the brake closes rather
+//! than leaving the load to the short circuit, whose sink speed
+//! `T R / (1.5 p² ψ²)` alone can drop a hot, heavy, weak-magnet unit beyond
+//! the bound within the brake's engage time ([`TorqueWatch::turn`]). A
+//! reversed torque is turned by half a turn. A missing torque says the error
+//! is near a quarter turn but not which way (the torque left goes with the
+//! cosine of the error, the same for either sign); the back-EMF's part
+//! along d says which (its sine). The quarter turn it points to is tried,
+//! watched with the same verdicts: tried the wrong way it reverses the
+//! torque, and the watch sees the push add to the fall within two looks;
+//! then the other quarter is half a turn further. A hold that fails
+//! otherwise switches the bridge off with the winding shorted.
 //!
 //! Rig-independent: the verdict is a sign, a distance and a trend, not a
 //! load or a gain; the time it allows follows the loop's own gains and the
@@ -107,6 +118,18 @@ pub struct TorqueLook {
     pub dt_s: f32,
 }
 
+/// How far the drive turned its angle away from the user's offset.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Turn {
+    #[default]
+    None,
+    /// A quarter turn on trial after a missing torque.
+    Quarter,
+    /// Half a turn from where the torque was reversed (directly, or the
+    /// quarter on trial reversed it): the last try.
+    Final,
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TorqueWatch {
     watched_s: f32,
@@ -123,33 +146,65 @@ pub struct TorqueWatch {
     resting: bool,
     /// The rotor moved towards the preload's push on the closed brake.
     pushed_back: bool,
-    /// The drive holds on the angle turned by half a turn after a verdict
-    /// (the controller's reaction); a second verdict switches it off.
-    turned: bool,
+    /// The angle the drive holds on after a verdict (the controller's
+    /// reaction).
+    turn: Turn,
     /// The electrical offset before the turn, given back bit for bit.
     offset_before_rad: f32,
 }
 
 impl TorqueWatch {
     pub const fn new() -> Self {
-        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false, pushed_back: false, turned: false, offset_before_rad: 0.0 }
+        Self { watched_s: 0.0, settled_s: 0.0, away_m_s: 0.0, start_m: 0.0, growing_s: 0.0, watching: false, resting: false, pushed_back: false, turn: Turn::None, offset_before_rad: 0.0 }
     }
 
-    /// Watches again, the drive now holding on the half-turned angle;
-    /// `offset_before_rad` is the offset to give back.
-    pub fn arm_turned(&mut self, offset_before_rad: f32) {
-        *self = Self { watching: true, turned: true, offset_before_rad, ..Self::new() };
+    /// The reaction to a verdict with the brake open: the angle offset to
+    /// hold on next, watched again from now, or `None` when the angles are
+    /// spent (the bridge goes off). `offset_rad` is the offset in use.
+    ///
+    /// A reversed torque turns by half a turn (exact for a half-turn error,
+    /// within a quarter turn of q for any error beyond a quarter). A missing
+    /// one turns by a quarter, the way the back-EMF points: with the angle
+    /// `δ` off, the EMF `ω_e ψ` lies along the true q axis, so in the
+    /// drive's frame its d part is `−ω_e ψ sin δ` (`emf_d_v`, the d voltage
+    /// less `R i_d`): its sign against the speed's gives the error's. At
+    /// the verdict the rotor turns at several rad/s, an EMF of tenths of a
+    /// volt against millivolts of `ω_e L i_q` coupling. If the trial still
+    /// went the wrong way the torque is now reversed, the next verdict says
+    /// so, and half a turn on from the trial is the other quarter. Any other
+    /// second verdict, and any verdict after a half turn, ends it.
+    pub fn turn(&mut self, reversed: bool, offset_rad: f32, emf_d_v: f32, speed_rad_s: f32) -> Option<f32> {
+        use core::f32::consts::{FRAC_PI_2, PI};
+        let quarter_rad = if emf_d_v * speed_rad_s > 0.0 { -FRAC_PI_2 } else { FRAC_PI_2 };
+        let (next, by_rad) = match (self.turn, reversed) {
+            (Turn::None, true) => (Turn::Final, PI),
+            (Turn::None, false) => (Turn::Quarter, quarter_rad),
+            (Turn::Quarter, true) => (Turn::Final, PI),
+            _ => return None,
+        };
+        let before = if self.turn == Turn::None { offset_rad } else { self.offset_before_rad };
+        *self = Self { watching: true, turn: next, offset_before_rad: before, ..Self::new() };
+        // Kept within ±π, as commutation leaves it.
+        let o = offset_rad + by_rad;
+        Some(if o > PI {
+            o - 2.0 * PI
+        } else if o < -PI {
+            o + 2.0 * PI
+        } else {
+            o
+        })
     }
 
+    /// The drive holds on a turned angle.
     pub fn turned(&self) -> bool {
-        self.turned
+        self.turn != Turn::None
     }
 
-    /// The hold on the turned angle is over (the bridge went off): the
-    /// offset to put back.
+    /// The hold on a turned angle is over (the bridge went off): the
+    /// user's offset to put back, bit for bit.
     pub fn end_turn(&mut self) -> f32 {
         self.watching = false;
-        self.turned = false;
+        self.turn = Turn::None;
         self.offset_before_rad
     }
 
@@ -221,13 +276,21 @@ impl TorqueWatch {
             self.growing_s += look.dt_s;
             let push_a = if e > 0.0 { look.q_current_reference_a } else { -look.q_current_reference_a };
             let beyond_load = push_a - look.stated_load_current_a.abs() > 0.15 * p.thermal.continuous_current_a;
-            // On the half-turned angle the motion the wrong angle built up
-            // (the rod's momentum through the drive train's compliance) may
-            // carry on for a while under a working torque: the loop's own
-            // response time, no shortcut.
-            let allowed_s = if beyond_load && !self.turned { 1.5 * look.dt_s } else { Self::response_s(p) };
+            // After a reversed torque the motion it built up (the drive
+            // train's compliance, wound up by the push) may carry the motor
+            // on for a while under a working torque: the loop's own
+            // response time, no shortcut. A quarter on trial follows a
+            // torque that was missing, not pushing: nothing is wound up, and
+            // a wrong trial must be seen within looks.
+            // A quarter on trial is judged early only on a reversal: the
+            // rod already falls at the speed the missing torque let it reach,
+            // and a right trial brakes it at once, a wrong one doubles its
+            // growth. A trial that neither brakes nor reverses gets the
+            // loop's full response time.
+            let trial = self.turn == Turn::Quarter;
+            let quick = (beyond_load || trial) && self.turn != Turn::Final;
+            let allowed_s = if quick { 1.5 * look.dt_s } else { Self::response_s(p) };
             if self.growing_s > allowed_s {
-                self.watching = false;
                 // How fast the speed away grew this look, against what the
                 // stated load alone gives (no torque) and what it gives with
                 // the push added to it (the torque reversed): the midpoint
@@ -235,7 +298,11 @@ impl TorqueWatch {
                 let growth_m_s2 = (away - self.away_m_s) / look.dt_s;
                 let per_amp_m_s2 = p.torque_constant_n_m_a() / p.reflected_inertia_kg_m2() * p.metres_per_rad();
                 let midpoint_m_s2 = per_amp_m_s2 * (look.stated_load_current_a.abs() + 0.5 * push_a);
-                return if growth_m_s2 > midpoint_m_s2 { TorqueWatchVerdict::Reversed } else { TorqueWatchVerdict::Inconsistent };
+                let reversed = growth_m_s2 > midpoint_m_s2;
+                if reversed || !trial || self.growing_s > Self::response_s(p) {
+                    self.watching = false;
+                    return if reversed { TorqueWatchVerdict::Reversed } else { TorqueWatchVerdict::Inconsistent };
+                }
             }
         } else {
             self.growing_s = 0.0;

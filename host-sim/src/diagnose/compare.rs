@@ -1,6 +1,7 @@
 //! Whether two logs can be compared at all (the log against its reference
-//! or its held-out log): the same sampling rate, and the same units in the
-//! columns a nominal is fitted on. Refused with the column and the figure.
+//! or its held-out log): the same sampling rate, the same units in the
+//! columns a nominal is fitted on, and the same signals logged. Refused
+//! with the column and the figure.
 
 use super::log::Log;
 use anyhow::{bail, Result};
@@ -24,6 +25,21 @@ pub const SCALE_COLUMNS: [&str; 6] = [
     "position_reference_m",
     "terminal_position_m",
     "voltage_q_v",
+];
+
+/// Signals that change what the nominal predicts or which channels exist:
+/// logged in one log and not in the other, a nominal fitted on one is
+/// applied to inputs it never saw (a load the reference's regression has
+/// no coefficient for) or a channel is scored that was never trained.
+pub const SHARED_SIGNALS: [(&str, &[&str]); 7] = [
+    ("position_reference_m", &["position_reference_m"]),
+    ("terminal_position_m", &["terminal_position_m"]),
+    ("motor_angle_rad", &["motor_angle_rad"]),
+    // The drive's q current, or the phase currents it is computed from.
+    ("current_q_a", &["current_q_a", "current_a_a"]),
+    ("voltage_q_v", &["voltage_q_v"]),
+    ("load_force_n", &["load_force_n"]),
+    ("tilt_deg", &["tilt_deg"]),
 ];
 
 fn median_step(log: &Log) -> Option<f64> {
@@ -62,6 +78,16 @@ pub fn comparable(log: &Log, other: &Log, role: &str) -> Result<()> {
                 other.source,
                 100.0 * rel,
                 100.0 * RATE_TOLERANCE
+            ));
+        }
+    }
+    for (signal, columns) in SHARED_SIGNALS {
+        let has = |l: &Log| columns.iter().any(|c| l.has(c));
+        let (a, b) = (has(log), has(other));
+        if a != b {
+            let (with, without) = if a { (&log.source, format!("the {role} `{}`", other.source)) } else { (&other.source, format!("`{}`", log.source)) };
+            errors.push(format!(
+                "column `{signal}`: logged in `{with}` but not in {without}: a nominal fitted on one log would be applied to a signal it never saw, or a channel scored that was never trained; log it in both, or remove it from both"
             ));
         }
     }

@@ -1,6 +1,7 @@
 //! Generic structures for what no library effect explains: a pure delay,
 //! a lightly damped resonance, a gain drifting with time, a constant
-//! unmeasured force, counts lost once. Each is a shape with one or two
+//! unmeasured force, counts lost once, a column quantised coarser than the
+//! rig file expects. Each is a shape with one or two
 //! parameters on a grid and a linear amplitude, fitted on the training
 //! remainder of the primary channel and scored on the held-out remainder,
 //! like the library (the drifting gain and a count loss, states of each
@@ -8,14 +9,18 @@
 //! from the channel's own measured output: the delay and the drift act on
 //! the channel's *nominal* prediction (from the motion and the load), the
 //! resonance is the rod side's ringing under the motor's thrust from the
-//! logged current (`resonance`).
+//! logged current (`resonance`); quantisation is gated on the logged
+//! column's own lattice and explains the rounding of the nominal's
+//! prediction of it (`quantise`).
 
 mod count_loss;
 mod drift;
 mod overlap;
+mod quantise;
 mod resonance;
 
 pub use overlap::Basis;
+pub use quantise::{lattice, Lattice};
 
 use resonance::rod_mode;
 
@@ -50,10 +55,15 @@ pub fn named(fits: &[GenericFit]) -> Option<&GenericFit> {
 /// One generic structure fitted and scored.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct GenericFit {
-    /// `delay`, `resonance`, `gain_drift`, `constant_force`.
+    /// `delay`, `resonance`, `gain_drift`, `constant_force`, `count_loss`,
+    /// `quantisation`.
     pub class: String,
     /// The channel it is fitted and scored on.
     pub channel: String,
+    /// The logged column it is read from, where it is one column's
+    /// (`quantisation`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub column: Option<String>,
     /// The parameters with their units in the names (`delay_ms`,
     /// `frequency_hz`, `damping_ratio`, `drift_per_s`, `level_n`, …).
     pub params: std::collections::BTreeMap<String, f64>,
@@ -260,6 +270,8 @@ pub fn fit(
     }
     // A gain drifting with time.
     out.extend(drift::fit(train, rem_t, held, rem_h, c, nominal_rms_h));
+    // A column quantised coarser than the rig file expects.
+    out.extend(quantise::fit(train, rem_t, held, rem_h, nominal, c, nominal_rms_h));
     // Counts lost once: an offset of the scale − motor difference.
     if c == POSITION {
         out.extend(count_loss::fit(train, rem_t, held, rem_h, nominal, nominal_rms_h));

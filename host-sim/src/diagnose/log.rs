@@ -10,6 +10,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 
+pub use super::defmt_log::parse_defmt;
+
 /// One schema column: name, unit, meaning, plausible range (a value outside
 /// it is reported as a probable unit mistake).
 pub struct Column {
@@ -359,6 +361,25 @@ impl Log {
         self.issues.extend(issues);
     }
 
+    /// Why no stretch of the log can be analysed, with the minimum: the
+    /// residual smooths ±10 ms (at least ±2 samples) on both sides of every
+    /// sample, so a run or a stretch between gaps needs that window twice
+    /// and five samples more (and at least 12).
+    pub fn too_short(&self) -> String {
+        let t = self.get("time_s").unwrap_or(&[]);
+        let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+        d.sort_by(f64::total_cmp);
+        let dt = d.get(d.len() / 2).copied().unwrap_or(1e-3);
+        let m = super::residual::half_width(dt);
+        let longest = self.segments().iter().map(|(a, b)| b - a).max().unwrap_or(0);
+        format!(
+            "{} rows, the longest run or stretch between gaps {longest} samples; at {:.4} Hz one needs at least {} samples (the ±{m}-sample smoothing window on both sides, plus 5) to give a training and a held-out part",
+            self.len(),
+            1.0 / dt,
+            (2 * m + 5).max(12)
+        )
+    }
+
     /// Contiguous segments `[start, end)`: split at run changes and gaps.
     pub fn segments(&self) -> Vec<(usize, usize)> {
         let n = self.len();
@@ -424,157 +445,6 @@ impl Log {
         }
         out
     }
-}
-
-/// Telemetry fields of the firmware's `tlm Telemetry { … }` line mapped to
-/// schema columns; the others are known and not used.
-const TLM_MAP: &[(&str, &str)] = &[
-    ("time_s", "time_s"),
-    ("position_reference_m", "position_reference_m"),
-    ("motor_angle_rad", "motor_angle_rad"),
-    ("terminal_position_m", "terminal_position_m"),
-    ("current_q_a", "current_q_a"),
-    ("current_d_a", "current_d_a"),
-    ("voltage_q_v", "voltage_q_v"),
-    ("bus_voltage_v", "bus_voltage_v"),
-];
-const TLM_UNUSED: &[&str] = &[
-    "mode",
-    "position_command_m",
-    "position_shift_m",
-    "motor_position_m",
-    "speed_reference_rad_s",
-    "speed_rad_s",
-    "current_q_reference_a",
-    "voltage_d_v",
-    "load_force_estimate_n",
-    "faults",
-    "limits",
-];
-
-/// Splits `a: x, b: Some(1.0), c: Foo { d: 1 }` at top-level commas.
-fn top_level_fields(body: &str) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    let mut depth = 0i32;
-    let mut cur = String::new();
-    for ch in body.chars() {
-        match ch {
-            '{' | '(' | '[' => depth += 1,
-            '}' | ')' | ']' => depth -= 1,
-            _ => {}
-        }
-        if ch == ',' && depth == 0 {
-            out.push(std::mem::take(&mut cur));
-        } else {
-            cur.push(ch);
-        }
-    }
-    out.push(cur);
-    out.into_iter()
-        .filter_map(|f| {
-            let (k, v) = f.split_once(':')?;
-            Some((k.trim().to_string(), v.trim().to_string()))
-        })
-        .collect()
-}
-
-/// Parses defmt output (probe-rs / defmt-print): every line containing
-/// `tlm Telemetry {` becomes a row; other lines are skipped and counted.
-/// `None` fields (no scale) become NaN only if the column exists elsewhere;
-/// a column that is `None` on every row is left out.
-pub fn parse_defmt(text: &str, source: &str) -> Result<Log> {
-    let mut issues = Vec::new();
-    let mut rows: Vec<BTreeMap<String, f64>> = Vec::new();
-    let mut unknown: BTreeMap<String, usize> = BTreeMap::new();
-    let mut skipped = 0usize;
-    let mut line_of_row = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
-        let Some(pos) = line.find("tlm Telemetry {") else {
-            skipped += 1;
-            continue;
-        };
-        let body = &line[pos + "tlm Telemetry {".len()..];
-        let Some(end) = body.rfind('}') else {
-            issues.push(Issue {
-                row: Some(ln + 1),
-                column: None,
-                severity: Severity::Error,
-                message: "truncated telemetry line".into(),
-            });
-            continue;
-        };
-        let mut row = BTreeMap::new();
-        for (k, v) in top_level_fields(&body[..end]) {
-            if let Some((_, col)) = TLM_MAP.iter().find(|(f, _)| *f == k) {
-                let inner = v
-                    .strip_prefix("Some(")
-                    .and_then(|s| s.strip_suffix(')'))
-                    .unwrap_or(&v);
-                if inner == "None" {
-                    continue;
-                }
-                match inner.parse::<f64>() {
-                    Ok(x) => {
-                        row.insert(col.to_string(), x);
-                    }
-                    Err(_) => issues.push(Issue {
-                        row: Some(ln + 1),
-                        column: Some(k.clone()),
-                        severity: Severity::Error,
-                        message: format!("`{v}` is not a number (line {})", ln + 1),
-                    }),
-                }
-            } else if !TLM_UNUSED.contains(&k.as_str()) {
-                *unknown.entry(k).or_default() += 1;
-            }
-        }
-        line_of_row.push(ln + 1);
-        rows.push(row);
-    }
-    if rows.is_empty() {
-        bail!("{source}: no `tlm Telemetry {{ … }}` lines found ({skipped} other lines)");
-    }
-    for (k, n) in unknown {
-        issues.push(Issue {
-            row: None,
-            column: Some(k),
-            severity: Severity::Note,
-            message: format!("unknown telemetry field on {n} lines; ignored"),
-        });
-    }
-    if skipped > 0 {
-        issues.push(Issue {
-            row: None,
-            column: None,
-            severity: Severity::Note,
-            message: format!("{skipped} non-telemetry lines skipped"),
-        });
-    }
-    let mut names: Vec<String> = rows.iter().flat_map(|r| r.keys().cloned()).collect();
-    names.sort();
-    names.dedup();
-    let columns = names
-        .into_iter()
-        .map(|n| {
-            let v = rows
-                .iter()
-                .map(|r| r.get(&n).copied().unwrap_or(f64::NAN))
-                .collect();
-            (n, v)
-        })
-        .collect();
-    let mut log = Log::from_columns(source, columns)?;
-    // Row numbers of the validation refer to telemetry rows; name the line too.
-    for i in &mut log.issues {
-        if let Some(r) = i.row {
-            if let Some(l) = line_of_row.get(r - 1) {
-                i.message = format!("{} (input line {l})", i.message);
-            }
-        }
-    }
-    issues.append(&mut log.issues);
-    log.issues = issues;
-    Ok(log)
 }
 
 /// Reads a log: `.csv` in the schema, anything else as defmt text.

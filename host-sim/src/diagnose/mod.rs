@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod compare;
 pub mod cranfield;
+mod defmt_log;
 pub mod disturbance;
 pub mod effects;
 pub mod events;
@@ -211,8 +212,9 @@ fn diagnose_split(
     let held: Vec<&Segment> = segments.iter().filter(|s| s.heldout).collect();
     if train.is_empty() || held.is_empty() {
         bail!(
-            "{}: too little data for a training and a held-out part",
-            log.source
+            "{}: too little data for a training and a held-out part: {}",
+            log.source,
+            log.too_short()
         );
     }
     let dt = train[0].t.get(1).map_or(1e-3, |t1| t1 - train[0].t[0]);

@@ -77,6 +77,10 @@ pub struct Segment {
     /// removes what drives a mode above ≈ 25 Hz.
     pub iq: Vec<f64>,
     pub iq_logged: Vec<f64>,
+    /// The motor angle and the scale as logged (empty: not logged), where
+    /// a sensor's own resolution shows.
+    pub theta_logged: Vec<f64>,
+    pub scale_logged: Vec<f64>,
     /// The logged motor temperature, °C (empty: not logged).
     pub temperature_c: Vec<f64>,
     /// Direction of motion with hysteresis (±1), and samples since reversal.
@@ -286,6 +290,12 @@ pub fn build_segments(log: &Log, nominal: &Nominal, tilt_default_deg: f64) -> Re
             seg.since_reversal_s.push(t[i] - last_rev);
             seg.iq.push(iq.map_or(0.0, |q| q.0));
             seg.iq_logged.push(iq_raw.as_ref().map_or(0.0, |v| v[i]));
+            if encoder {
+                seg.theta_logged.push(theta_raw[i]);
+            }
+            if let Some(sc) = scale {
+                seg.scale_logged.push(sc[i]);
+            }
             if let Some(tc) = temperature {
                 seg.temperature_c.push(tc[i]);
             }

@@ -25,6 +25,8 @@ pub fn slice_segment(s: &Segment, a: usize, b: usize, held: bool) -> Segment {
         f_ax: sl(&s.f_ax),
         iq: sl(&s.iq),
         iq_logged: sl(&s.iq_logged),
+        theta_logged: if s.theta_logged.is_empty() { Vec::new() } else { sl(&s.theta_logged) },
+        scale_logged: if s.scale_logged.is_empty() { Vec::new() } else { sl(&s.scale_logged) },
         temperature_c: if s.temperature_c.is_empty() {
             Vec::new()
         } else {

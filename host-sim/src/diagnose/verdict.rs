@@ -513,6 +513,7 @@ pub fn decide(i: &Inputs) -> Verdict {
                 "gain_drift" if g.params.contains_key("gain_per_k") => "gain drifting with the motor temperature",
                 "gain_drift" => "gain drifting with time",
                 "constant_force" => "constant unmeasured force",
+                "quantisation" => "column logged coarser than the rig file's resolution (quantisation)",
                 other => other,
             },
             g.channel,

@@ -32,6 +32,9 @@ pub enum Failure {
     /// remounted) and is a quarter electrical turn off, so the motor makes
     /// no torque. The torque watch must close the brake.
     OffsetQuarterTurnOff,
+    /// As above, a quarter turn off the other way: the torque is as missing,
+    /// and a correction tried forwards reverses it.
+    OffsetQuarterTurnBack,
     /// As above, half a turn off: the torque is reversed, and the loops'
     /// correction drives the rod away.
     OffsetHalfTurnOff,
@@ -49,7 +52,7 @@ impl Failure {
             Self::SupplySagDuringCalibration => Some(FaultSet::CALIBRATION_FAILED),
             Self::BrakeSlips => Some(FaultSet::BRAKE_SLIP),
             Self::HomeSwitchNeverTriggers | Self::HardStopNeverMet => Some(FaultSet::HOMING_FAILED),
-            Self::OffsetQuarterTurnOff | Self::OffsetHalfTurnOff => Some(FaultSet::WRONG_DIRECTION),
+            Self::OffsetQuarterTurnOff | Self::OffsetQuarterTurnBack | Self::OffsetHalfTurnOff => Some(FaultSet::WRONG_DIRECTION),
         }
     }
 
@@ -57,12 +60,13 @@ impl Failure {
     pub fn offset_error_rad(self) -> Option<f64> {
         match self {
             Self::OffsetQuarterTurnOff => Some(0.5 * std::f64::consts::PI),
+            Self::OffsetQuarterTurnBack => Some(-0.5 * std::f64::consts::PI),
             Self::OffsetHalfTurnOff => Some(std::f64::consts::PI),
             _ => None,
         }
     }
 
-    pub const ALL: [Self; 10] = [
+    pub const ALL: [Self; 11] = [
         Self::BlockedRotor,
         Self::SwappedPhases,
         Self::WrongPolePairs,
@@ -72,6 +76,7 @@ impl Failure {
         Self::HomeSwitchNeverTriggers,
         Self::HardStopNeverMet,
         Self::OffsetQuarterTurnOff,
+        Self::OffsetQuarterTurnBack,
         Self::OffsetHalfTurnOff,
     ];
 }

@@ -68,7 +68,10 @@ impl Spec {
         match self.target {
             Target::Current => [Signal::CurrentQReference, Signal::CurrentQ, Signal::VoltageQ, Signal::Speed],
             Target::CurrentD => [Signal::CurrentDReference, Signal::CurrentD, Signal::VoltageD, Signal::Speed],
-            Target::Speed => [Signal::SpeedReference, Signal::Speed, Signal::CurrentQ, Signal::MotorPosition],
+            // The q voltage rather than the position (the speed is there):
+            // it carries the back-EMF, so `tune identify` finds the magnets'
+            // flux from a drive's own speed steps.
+            Target::Speed => [Signal::SpeedReference, Signal::Speed, Signal::CurrentQ, Signal::VoltageQ],
             Target::Position => [Signal::PositionCommand, Signal::MotorPosition, Signal::Speed, Signal::CurrentQ],
         }
     }
@@ -144,14 +147,15 @@ pub fn capture_test(c: &mut Client, spec: &Spec, pwm_hz: f64) -> Result<CaptureD
     capture_with(c, cfg, move |c| start_test(c, test), wait)
 }
 
-/// Starts a test, waiting out the brake's release after `Enable`: the drive
-/// refuses a test while its brake still opens (`brake.release_time_s` of
-/// drive time), which a test sent right after `Enable` meets.
+/// Starts a test, waiting out the brake's release and the first hold after
+/// `Enable`: the drive refuses a test while its brake still opens
+/// (`brake.release_time_s` of drive time) and until the loops have held the
+/// rod still once, which a test sent right after `Enable` meets.
 fn start_test(c: &mut Client, test: TestSignal) -> Result<()> {
     let started = Instant::now();
     loop {
         match c.request(Request::Test(test))? {
-            Reply::Error(Error::Test { reason: Reason::BrakeOpening }) if started.elapsed() < BRAKE_WAIT_MAX => {
+            Reply::Error(Error::Test { reason: Reason::BrakeOpening | Reason::AxisNotYetSettled }) if started.elapsed() < BRAKE_WAIT_MAX => {
                 c.poll(Duration::from_millis(5))?;
                 c.telemetry.clear();
             }
@@ -161,8 +165,9 @@ fn start_test(c: &mut Client, test: TestSignal) -> Result<()> {
     }
 }
 
-/// Wall time a test waits for the brake to open before its refusal is the
-/// answer (preload and release take a fraction of a second of drive time).
+/// Wall time a test waits for the brake to open and the axis to hold still
+/// before the refusal is the answer (preload, release and the first settle
+/// take a fraction of a second of drive time).
 const BRAKE_WAIT_MAX: Duration = Duration::from_secs(10);
 
 /// The same test on a fresh simulated drive with `params` (fast pacing,

@@ -60,6 +60,44 @@ pub struct DesignPlant {
     /// unloaded.
     #[serde(default)]
     pub load_sign: f64,
+    /// The friction a speed step meets and the drive's feedforward of it
+    /// (`model::step_response`); None: frictionless.
+    #[serde(default)]
+    pub step_friction: Option<StepFriction>,
+    /// The drive's speed limit (rad/s): with friction the step's response is
+    /// not linear in its amplitude, and the check sizes its step from it.
+    #[serde(default)]
+    pub speed_max_rad_s: f64,
+}
+
+/// Friction at the motor shaft during a speed step, and what the drive feeds
+/// forward against it (the core's `friction_feedforward_n_m` from the step's
+/// reference, `viscous · ω_ref`). While the rotor turns one way the Coulomb
+/// torque is a constant one opposing the motion; at rest it holds whatever
+/// the net torque is, up to the breakaway level (static friction).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StepFriction {
+    /// Coulomb torque while moving, under the static load (N·m): the
+    /// identified `T_c` (drag, seal, and the screw's efficiency law under the
+    /// load; the share under the step's inertial force is in
+    /// [`DesignPlant::for_step`]'s inertia).
+    pub coulomb_n_m: f64,
+    /// The share of `coulomb_n_m` that acts on the load (the rod seal's, at
+    /// the motor): with the rod's mode it drags the load, not the rotor.
+    pub load_side_n_m: f64,
+    /// Breakaway above Coulomb (static − Coulomb, N·m, the seal's: on the
+    /// load side with the rod's mode), fading as `exp(−(ω/ω_s)²)`.
+    pub breakaway_excess_n_m: f64,
+    pub stribeck_rad_s: f64,
+    /// The drive's Coulomb feedforward at full size (N·m), its direction
+    /// ramped over `feedforward_ramp_rad_s` of the reference.
+    pub feedforward_coulomb_n_m: f64,
+    pub feedforward_ramp_rad_s: f64,
+    /// The drive's viscous feedforward (N·m·s/rad on the reference).
+    pub feedforward_viscous_n_m_s_rad: f64,
+    /// Friction holding the rotor at rest before the step, in the step's
+    /// direction (N·m): the hold current is short of the load by it.
+    pub rest_n_m: f64,
 }
 
 /// The load mass on the drive train's axial stiffness, seen at the motor.
@@ -115,6 +153,8 @@ impl DesignPlant {
             load_inertia_kg_m2: 0.0,
             screw_mu: 0.0,
             load_sign: 0.0,
+            step_friction: None,
+            speed_max_rad_s: f64::from(p.limits.speed_max_rad_s),
         }
     }
 

@@ -42,7 +42,7 @@ fn enforced() -> bool {
 }
 
 fn overshoot(p: &DesignPlant, g: &Gains, kind: StepKind, dur: f64) -> f64 {
-    model::overshoot_pct(&model::step_response(p, g, kind, 1.0, dur), 1.0)
+    model::design_overshoot_pct(p, g, kind, dur)
 }
 
 /// The current PI (pole-zero cancellation), if the ask is below the

@@ -32,6 +32,13 @@ struct Biquad {
 }
 
 impl Biquad {
+    /// Settled at `x` (unity gain at DC).
+    fn preset(&mut self, x: f64) {
+        if !self.pass {
+            self.z1 = x * (1.0 - self.b0);
+            self.z2 = x * (self.b0 - self.a2);
+        }
+    }
     fn new(f: f64, rate: f64) -> Self {
         if !(f > 0.0 && f < 0.45 * rate) {
             return Biquad { b0: 1.0, a1: 0.0, a2: 0.0, z1: 0.0, z2: 0.0, pass: true };
@@ -76,13 +83,21 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
         }
         None => (p.inertia_kg_m2, 0.0, 0.0, 0.0),
     };
-    let (mut i, mut th, mut w, mut thl, mut wl) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    // Friction on a speed step only (the position step's plan is a hold:
+    // nothing is fed forward, and its figures are not designed on it). In
+    // the step's direction `dir`; the load and the hold current that
+    // carries it cancel, but for the share friction carried at rest.
+    let fr = if kind == StepKind::Speed { p.step_friction } else { None };
+    let dir = if amplitude < 0.0 { -1.0 } else { 1.0 };
+    let i0 = fr.map_or(0.0, |f| -dir * f.rest_n_m / p.kt_n_m_a);
+    let (mut i, mut th, mut w, mut thl, mut wl) = (i0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let (mut th_est, mut w_est) = (0.0f64, 0.0f64);
-    let (mut int_i, mut int_w) = (0.0f64, 0.0f64);
-    let mut u_prev = 0.0;
+    let (mut int_i, mut int_w) = (p.r_ohm * i0, i0);
+    let mut u_prev = p.r_ohm * i0;
     let mut w_ref = 0.0;
-    let mut i_ref = 0.0;
+    let mut i_ref = i0;
     let mut tf = Biquad::new(p.torque_filter_hz, 1.0 / ts);
+    tf.preset(i0);
     let mut out = Vec::with_capacity(n);
     let sub = 20;
     let h = t / sub as f64;
@@ -110,7 +125,11 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
         if kind != StepKind::Current && speed_tick {
             let e = w_ref - w_est;
             int_w += g.speed.1 * e * ts;
-            i_ref = tf.update(g.speed.0 * (p.speed_setpoint_weight * w_ref - w_est) + int_w);
+            let ff = fr.map_or(0.0, |f| {
+                let ramp = if f.feedforward_ramp_rad_s > 0.0 { (w_ref / f.feedforward_ramp_rad_s).clamp(-1.0, 1.0) } else { w_ref.signum() };
+                (f.feedforward_viscous_n_m_s_rad * w_ref + f.feedforward_coulomb_n_m * ramp) / p.kt_n_m_a
+            });
+            i_ref = tf.update(g.speed.0 * (p.speed_setpoint_weight * w_ref - w_est) + int_w + ff);
         }
         let e = i_ref - i;
         int_i += g.current.1 * e * t;
@@ -133,14 +152,26 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
             let i_mid = i_inf + (i_s - i_inf) * (1.0 - ah) * p.l_h / (p.r_ohm * h);
             i_s = i_next;
             let torque = p.kt_n_m_a * i_mid;
+            let spring = if jl > 0.0 { kax * (th - thl) + cax * (w - wl) } else { 0.0 };
+            let net = torque - p.viscous_n_m_s_rad * w - spring;
+            // The seal's share (and its breakaway) acts on the load where the
+            // rod's mode separates it from the rotor, the rest on the rotor.
+            let (motor_fr, load_fr) = fr.map_or((0.0, 0.0), |f| {
+                if jl > 0.0 {
+                    let seal = f.load_side_n_m.clamp(0.0, f.coulomb_n_m);
+                    (friction_torque(f.coulomb_n_m - seal, 0.0, 0.0, w, net), friction_torque(seal, f.breakaway_excess_n_m, f.stribeck_rad_s, wl, spring))
+                } else {
+                    (friction_torque(f.coulomb_n_m, f.breakaway_excess_n_m, f.stribeck_rad_s, w, net), 0.0)
+                }
+            });
+            let friction = motor_fr;
             if jl > 0.0 {
-                let f = kax * (th - thl) + cax * (w - wl);
-                w += h * (torque - p.viscous_n_m_s_rad * w - f) / jm;
-                wl += h * f / jl;
+                w += h * (net - friction) / jm;
+                wl += h * (spring - load_fr) / jl;
                 th += h * w;
                 thl += h * wl;
             } else {
-                w += h * (torque - p.viscous_n_m_s_rad * w) / jm;
+                w += h * (net - friction) / jm;
                 th += h * w;
             }
         }
@@ -152,10 +183,43 @@ pub fn step_response(p: &DesignPlant, g: &Gains, kind: StepKind, amplitude: f64,
     out
 }
 
+/// Below this speed (rad/s) the rotor is at rest for the friction law.
+const STICK_RAD_S: f64 = 1e-3;
+
+/// Friction torque (Coulomb `coulomb`, breakaway `coulomb + excess` fading
+/// over the Stribeck speed `stribeck`) opposing a body at speed `w` under the
+/// net driving torque `net`: at rest it holds `net` up to the breakaway
+/// level (and the body stays), moving it opposes the motion.
+fn friction_torque(coulomb: f64, excess: f64, stribeck: f64, w: f64, net: f64) -> f64 {
+    if w.abs() < STICK_RAD_S {
+        let breakaway = coulomb + excess;
+        return if net.abs() <= breakaway { net } else { breakaway.copysign(net) };
+    }
+    let fade = if stribeck > 0.0 { (-(w / stribeck).powi(2)).exp() } else { 0.0 };
+    (coulomb + excess * fade).copysign(w)
+}
+
 /// Overshoot (%) of a response to a step of `amplitude` that settles there.
 pub fn overshoot_pct(y: &[f64], amplitude: f64) -> f64 {
     let peak = y.iter().map(|v| v / amplitude).fold(f64::MIN, f64::max);
     ((peak - 1.0) * 100.0).max(0.0)
+}
+
+/// The speed step the check runs (rad/s): as large as a 10 A swing of the
+/// PI's proportional term allows, so that Coulomb friction stays a small part
+/// of the response, within 10–100 rad/s and 30 % of the speed limit. The
+/// model steps by the same amount: with friction its response is not linear
+/// in the amplitude.
+pub fn speed_step_amplitude_rad_s(kp: f64, speed_max_rad_s: f64) -> f64 {
+    (10.0 / kp).clamp(10.0, 100.0).min(0.3 * speed_max_rad_s)
+}
+
+/// The overshoot (%) of the design model's step as the check runs it: a
+/// speed step at [`speed_step_amplitude_rad_s`] (friction makes its
+/// overshoot depend on the size), the others at unit amplitude (linear).
+pub fn design_overshoot_pct(p: &DesignPlant, g: &Gains, kind: StepKind, duration_s: f64) -> f64 {
+    let a = if kind == StepKind::Speed && p.step_friction.is_some() { speed_step_amplitude_rad_s(g.speed.0, p.speed_max_rad_s) } else { 1.0 };
+    overshoot_pct(&step_response(p, g, kind, a, duration_s), a)
 }
 
 /// How long the speed step (test and model) lasts for an asked bandwidth:

@@ -36,9 +36,13 @@ pub enum Novel {
     CurrentSaturation,
     /// An encoder miscount burst: 0.02–0.06 rad lost over 40 ms, kept.
     EncoderMiscount,
+    /// A column logged coarser than the rig file says, by draw: an encoder
+    /// of 250–1000 counts/rev (the file says 10 000), the scale rounded to
+    /// 5–20 µm (1 µm), the current rounded to 0.2–0.6 A (a 24 mA ADC).
+    Quantisation,
 }
 
-pub const NOVEL: [Novel; 7] = [
+pub const NOVEL: [Novel; 8] = [
     Novel::ForceSteps,
     Novel::ForcePulses,
     Novel::SensorDelay,
@@ -46,6 +50,7 @@ pub const NOVEL: [Novel; 7] = [
     Novel::TorqueConstantDrop,
     Novel::CurrentSaturation,
     Novel::EncoderMiscount,
+    Novel::Quantisation,
 ];
 
 impl Novel {
@@ -58,6 +63,7 @@ impl Novel {
             Novel::TorqueConstantDrop => "torque_constant_drop",
             Novel::CurrentSaturation => "current_saturation",
             Novel::EncoderMiscount => "encoder_miscount_burst",
+            Novel::Quantisation => "quantisation",
         }
     }
     /// An unmeasured force with a time course (the disturbance's target).
@@ -73,6 +79,9 @@ impl Novel {
             // the events that excite it.
             Novel::StructuralResonance => &["periodic", "event-locked"],
             Novel::TorqueConstantDrop => &["drift", "input-correlated"],
+            // A rounding error: noise while the signal crosses cells, a
+            // function of the signal while it creeps.
+            Novel::Quantisation => &["broadband (white)", "broadband (coloured)", "input-correlated"],
         }
     }
 }
@@ -349,6 +358,7 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 generic_truth: None,
             }
         }
+        Novel::Quantisation => quantised_logs(rig, seed),
         Novel::EncoderMiscount => {
             let burst = |l: Log, rng: &mut ChaCha8Rng| {
                 let (tb, lost) = (
@@ -374,6 +384,31 @@ pub fn novel_logs(rig: &RigConfig, kind: Novel, seed: u64) -> Logs {
                 generic_truth: Some(("count_loss", vec![("lost_rad", lost)])),
             }
         }
+    }
+}
+
+/// Logs of a rig whose one sensor logs coarser than the rig file says:
+/// draw `seed % 3` picks the column (the encoder with fewer counts, the
+/// scale rounded, the current rounded), the step drawn in its range; both
+/// logs carry it (it is the rig's sensor). The truth is the step in the
+/// column's unit.
+pub fn quantised_logs(rig: &RigConfig, seed: u64) -> Logs {
+    let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+    let none = UnmodelledEffects::default();
+    let (column, step, floor) = match seed % 3 {
+        // An encoder reports the count it has reached: a floor.
+        0 => ("motor_angle_rad", std::f64::consts::TAU / rng.random_range(250.0f64..1000.0).round(), true),
+        1 => ("terminal_position_m", rng.random_range(5e-6..20e-6), false),
+        _ => ("current_q_a", rng.random_range(0.2..0.6), false),
+    };
+    let q = move |v: &[f64], _: &BTreeMap<String, Vec<f64>>| -> Vec<f64> {
+        v.iter().map(|x| step * if floor { (x / step).floor() } else { (x / step).round() }).collect()
+    };
+    Logs {
+        train: with_column(&run_exp(rig, &none, 1000 + seed), column, q),
+        held: with_column(&run_exp(rig, &none, 2000 + seed), column, q),
+        held_events_s: vec![],
+        generic_truth: Some(("quantisation", vec![("step", step)])),
     }
 }
 

@@ -45,6 +45,12 @@ pub struct Physics {
     pub compliance: Compliance,
     /// Contact preload of the nut (Hertz law), N.
     pub contact_preload_n: f64,
+    /// The resolution the rig's sensors log at: one encoder count, rad; the
+    /// scale's step, m; one current-ADC step, A. A logged column coarser
+    /// than these is a quantisation the nominal does not expect.
+    pub encoder_step_rad: f64,
+    pub scale_step_m: f64,
+    pub current_step_a: f64,
 }
 
 impl Physics {
@@ -78,6 +84,9 @@ impl Physics {
             omega_eps: 0.5,
             compliance: Compliance::new(p),
             contact_preload_n: p.deformation.contact.preload_n,
+            encoder_step_rad: std::f64::consts::TAU / f64::from(p.sensors.encoder_counts_per_rev),
+            scale_step_m: p.sensors.linear_scale_resolution_m,
+            current_step_a: 2.0 * p.sensors.current_full_scale_a / 2f64.powi(p.sensors.adc_bits as i32),
         }
     }
 

@@ -96,26 +96,21 @@ pub fn current_sensor_offset(rig: &RigConfig) -> Scenario {
 }
 
 pub fn nan_current_sample(rig: &RigConfig) -> Scenario {
-    let setup = base(rig);
-    let inj = one_period(&setup, FAULT_AT_S, Injection::CurrentNan { phase: 2 });
-    Scenario {
-        name: "nan_current_sample",
-        what: "one NaN phase-c current reading while moving",
-        setup,
-        injections: vec![inj],
-        commands: moving(),
-        duration_s: 0.7,
-        fault_at_s: None,
-        expect: expect(FaultSet::NON_FINITE_INPUT, Mode::Fault, 0),
-    }
+    one_nan_sample(rig, "nan_current_sample", "one NaN phase-c current reading while moving", Injection::CurrentNan { phase: 2 })
 }
 
 pub fn nan_bus_sample(rig: &RigConfig) -> Scenario {
+    one_nan_sample(rig, "nan_bus_sample", "one NaN bus-voltage reading while moving", Injection::BusReadingNan)
+}
+
+/// One non-finite reading for one period while moving: the drive refuses
+/// it as `non_finite_input` at once, whichever sensor it came from.
+fn one_nan_sample(rig: &RigConfig, name: &'static str, what: &'static str, nan: Injection) -> Scenario {
     let setup = base(rig);
-    let inj = one_period(&setup, FAULT_AT_S, Injection::BusReadingNan);
+    let inj = one_period(&setup, FAULT_AT_S, nan);
     Scenario {
-        name: "nan_bus_sample",
-        what: "one NaN bus-voltage reading while moving",
+        name,
+        what,
         setup,
         injections: vec![inj],
         commands: moving(),
