@@ -258,7 +258,13 @@ impl Controller {
         // acceleration) is not left to the P loop as a lag of rate / kp. At
         // rest the P loop holds the shift alone, as the start-up torque
         // watch expects while it judges the rotor against its torque.
-        let shift_ff_m_s = if self.planned_velocity_m_s != 0.0 { observer_rate_m_s } else { 0.0 };
+        // Only with the load cell as the force input: the estimate is read
+        // from the current this feedforward commands, so fed forward the
+        // shift's rate would close a loop through the speed loop's current
+        // (estimate → shift → velocity → current → estimate), whereas the
+        // load cell is outside it.
+        let shift_ff_m_s =
+            if self.planned_velocity_m_s != 0.0 && self.force_from_load_cell(s) { observer_rate_m_s } else { 0.0 };
         let out = position_step(&self.params, command, r.velocity_m_s + shift_ff_m_s, r.acceleration_m_s2, self.motor_position_m());
         self.speed_reference_rad_s = out.speed_reference_rad_s + self.test.speed_offset_rad_s;
         self.acceleration_reference_rad_s2 = out.acceleration_reference_rad_s2;
@@ -294,13 +300,19 @@ impl Controller {
         match s.load_cell_force_n {
             // The load cell sits beyond the nut and the seal: it feels the
             // payload's inertia but none of the friction.
-            Some(f) if !self.params.compensation.force_from_estimate => {
+            Some(f) if self.force_from_load_cell(s) => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
             _ => {
                 self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, planned_m_s, inertial_n, dt);
             }
         }
+    }
+
+    /// Whether the load force (the observer's force input) comes from the
+    /// load cell this period, rather than from the current-based estimate.
+    fn force_from_load_cell(&self, s: &SensorSample) -> bool {
+        s.load_cell_force_n.is_some() && !self.params.compensation.force_from_estimate
     }
 
     /// Regeneration: while the bus is above `regen_bus_start_v`, a hanging
