@@ -38,7 +38,11 @@ fn moves(segs: &[&Segment]) -> Vec<(usize, usize, i8)> {
             let after = s.v_ref[(i + look).min(s.len() - 1)];
             let before = s.v_ref[i.saturating_sub(look)];
             let start = after.abs() > before.abs();
-            let dir = if start { after.signum() } else { before.signum() };
+            let dir = if start {
+                after.signum()
+            } else {
+                before.signum()
+            };
             out.push((k, i, (dir as i8) * if start { 1 } else { 2 }));
         }
     }
@@ -60,7 +64,12 @@ fn step(x: &[f64], i: usize, w: usize) -> Option<f64> {
 /// move (all those farther than `ANCHOR_S` from a move, or without a
 /// like move in the reference), and how many of those near a move it
 /// repeats.
-pub fn not_repeated(held: &[&Segment], rem_held: &Remainder, cps: &[Vec<usize>], reference: &[&Segment]) -> (Vec<Vec<usize>>, usize) {
+pub fn not_repeated(
+    held: &[&Segment],
+    rem_held: &Remainder,
+    cps: &[Vec<usize>],
+    reference: &[&Segment],
+) -> (Vec<Vec<usize>>, usize) {
     let mv_h = moves(held);
     let mv_r = moves(reference);
     let mut repeated = 0;
@@ -74,29 +83,29 @@ pub fn not_repeated(held: &[&Segment], rem_held: &Remainder, cps: &[Vec<usize>],
         let w = ((STEP_WINDOW_S / s.dt).round() as usize).max(2);
         for &i in cp {
             let is_repeated = || -> Option<bool> {
-            let &(_, e, kind) = mv_h
-                .iter()
-                .filter(|(kk, e, _)| *kk == k && (*e as i64 - i as i64).abs() <= anchor)
-                .min_by_key(|(_, e, _)| (*e as i64 - i as i64).abs())?;
-            let h_step = step(x, i, w)?;
-            let d = i as i64 - e as i64;
-            let mut r_steps: Vec<f64> = mv_r
-                .iter()
-                .filter(|(_, _, kd)| *kd == kind)
-                .filter_map(|&(kr, er, _)| {
-                    let s = reference[kr];
-                    let r = s.r[TORQUE].as_ref()?;
-                    let j = er as i64 + d;
-                    (j >= 0).then_some(())?;
-                    step(r, j as usize, w)
-                })
-                .collect();
-            if r_steps.is_empty() {
-                return None;
-            }
-            r_steps.sort_by(f64::total_cmp);
-            let r_med = r_steps[r_steps.len() / 2];
-            Some((h_step - r_med).abs() <= (1.0 - REPEATED_SHARE) * h_step.abs())
+                let &(_, e, kind) = mv_h
+                    .iter()
+                    .filter(|(kk, e, _)| *kk == k && (*e as i64 - i as i64).abs() <= anchor)
+                    .min_by_key(|(_, e, _)| (*e as i64 - i as i64).abs())?;
+                let h_step = step(x, i, w)?;
+                let d = i as i64 - e as i64;
+                let mut r_steps: Vec<f64> = mv_r
+                    .iter()
+                    .filter(|(_, _, kd)| *kd == kind)
+                    .filter_map(|&(kr, er, _)| {
+                        let s = reference[kr];
+                        let r = s.r[TORQUE].as_ref()?;
+                        let j = er as i64 + d;
+                        (j >= 0).then_some(())?;
+                        step(r, j as usize, w)
+                    })
+                    .collect();
+                if r_steps.is_empty() {
+                    return None;
+                }
+                r_steps.sort_by(f64::total_cmp);
+                let r_med = r_steps[r_steps.len() / 2];
+                Some((h_step - r_med).abs() <= (1.0 - REPEATED_SHARE) * h_step.abs())
             };
             if is_repeated() == Some(true) {
                 repeated += 1;
@@ -128,8 +137,16 @@ pub fn recheck_lock(
     let rs = build_segments(reference, nominal, tilt_default_deg)?;
     let refs: Vec<&Segment> = rs.iter().collect();
     let (kept, repeated) = not_repeated(held, rem_held, cps, &refs);
-    let steps: Vec<Vec<(usize, f64)>> = kept.iter().map(|v| v.iter().map(|i| (*i, 1.0)).collect()).collect();
-    let (lk, ch) = events::locked_share(held, &steps, &events::signal_events(held), disturbance::LOCK_TOL_S);
+    let steps: Vec<Vec<(usize, f64)>> = kept
+        .iter()
+        .map(|v| v.iter().map(|i| (*i, 1.0)).collect())
+        .collect();
+    let (lk, ch) = events::locked_share(
+        held,
+        &steps,
+        &events::signal_events(held),
+        disturbance::LOCK_TOL_S,
+    );
     let locked = lk >= disturbance::LOCKED_RATIO * ch
         && lk - ch >= disturbance::LOCKED_EXCESS_POINTS
         && events::lock_significant(&steps, lk, ch, disturbance::LOCK_ALPHA);
