@@ -25,6 +25,11 @@ use crate::params::ControlParams;
 pub struct CompensationOutput {
     /// Shift added to the reference this period (m).
     pub shift_m: f32,
+    /// How fast the prediction moved the shift this period (m/s), fed
+    /// forward as part of the commanded velocity; 0 while the rate limit
+    /// acts (the shift ramping in after enable, or out when switched off),
+    /// which the position loop follows as a move of its own.
+    pub rate_m_s: f32,
     /// The bound or the rate limit acted.
     pub limited: bool,
     /// An observer input lay outside the trained range (clamped).
@@ -113,9 +118,11 @@ impl Compensator {
         };
         let step_max = c.shift_rate_max_m_s * dt_s;
         let step = crate::math::clamp(target - self.shift_m, -step_max, step_max);
-        out.limited |= step != target - self.shift_m && self.enabled;
+        let ramping = step != target - self.shift_m;
+        out.limited |= ramping && self.enabled;
         self.shift_m += step;
         out.shift_m = self.shift_m;
+        out.rate_m_s = if ramping || dt_s <= 0.0 { 0.0 } else { step / dt_s };
         out
     }
 }

@@ -235,7 +235,7 @@ impl Controller {
         // shift while it opens would push the rotor against the brake,
         // which the start-up torque watch rightly reads as a rotor that
         // does not follow its torque.
-        let observer_shift = if self.mode == Mode::Running && !self.brake_opening() {
+        let (observer_shift, observer_rate_m_s) = if self.mode == Mode::Running && !self.brake_opening() {
             let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n());
             let c = self.compensator.update(&self.params, inputs, self.derived.position_period_s);
             if c.limited {
@@ -247,9 +247,9 @@ impl Controller {
             if c.out_of_bounds {
                 self.raise(FaultSet::OBSERVER_OUT_OF_BOUNDS);
             }
-            c.shift_m
+            (c.shift_m, c.rate_m_s)
         } else {
-            0.0
+            (0.0, 0.0)
         };
         let step_max = self.params.compensation.shift_rate_max_m_s * self.derived.position_period_s;
         self.external_shift_applied_m +=
@@ -266,7 +266,20 @@ impl Controller {
             command = clamped_command;
         }
         self.position_command_m = command;
-        let out = position_step(&self.params, command, r.velocity_m_s, r.acceleration_m_s2, self.motor_position_m());
+        // The command is the reference plus the shift, so during a planned
+        // move its velocity is the plan's plus the shift's: fed forward, the
+        // shift's growth at a move's start (the load's force rising with the
+        // acceleration) is not left to the P loop as a lag of rate / kp. At
+        // rest the P loop holds the shift alone, as the start-up torque
+        // watch expects while it judges the rotor against its torque.
+        // Only with the load cell as the force input: the estimate is read
+        // from the current this feedforward commands, so fed forward the
+        // shift's rate would close a loop through the speed loop's current
+        // (estimate → shift → velocity → current → estimate), whereas the
+        // load cell is outside it.
+        let shift_ff_m_s =
+            if self.planned_velocity_m_s != 0.0 && self.force_from_load_cell(s) { observer_rate_m_s } else { 0.0 };
+        let out = position_step(&self.params, command, r.velocity_m_s + shift_ff_m_s, r.acceleration_m_s2, self.motor_position_m());
         self.speed_reference_rad_s = out.speed_reference_rad_s + self.test.speed_offset_rad_s;
         self.acceleration_reference_rad_s2 = out.acceleration_reference_rad_s2;
         if out.speed_limited {
@@ -301,13 +314,19 @@ impl Controller {
         match s.load_cell_force_n {
             // The load cell sits beyond the nut and the seal: it feels the
             // payload's inertia but none of the friction.
-            Some(f) if !self.params.compensation.force_from_estimate => {
+            Some(f) if self.force_from_load_cell(s) => {
                 self.load.update_measured(&self.params, f, inertial_n, dt);
             }
             _ => {
                 self.load.update(&self.params, self.current_dq.q, self.acceleration_reference_rad_s2, planned_m_s, inertial_n, dt);
             }
         }
+    }
+
+    /// Whether the load force (the observer's force input) comes from the
+    /// load cell this period, rather than from the current-based estimate.
+    fn force_from_load_cell(&self, s: &SensorSample) -> bool {
+        s.load_cell_force_n.is_some() && !self.params.compensation.force_from_estimate
     }
 
     /// Regeneration: while the bus is above `regen_bus_start_v`, a hanging

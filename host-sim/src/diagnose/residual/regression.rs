@@ -96,6 +96,11 @@ pub fn zero_regression() -> Regression {
     }
 }
 
+/// Relative floor of the scaled Gram matrix's singular values kept in the
+/// regression's solve (1e-8: a condition number of 10⁴ on the scaled
+/// features themselves).
+pub const GRAM_RCOND: f64 = 1e-8;
+
 /// Fits the regression nominal on segments built with `zero_regression`.
 pub fn fit_regression_segments(segs: &[&Segment]) -> Regression {
     let vmax = segs
@@ -119,9 +124,18 @@ pub fn fit_regression_segments(segs: &[&Segment]) -> Regression {
                 }
             }
         }
-        ata.svd(true, true)
-            .solve(&atb, 1e-12)
-            .map(|v| v.iter().copied().collect())
+        // Each feature scaled to unit RMS, and directions of the scaled
+        // Gram matrix weaker than `GRAM_RCOND` of its strongest left
+        // out: the lagged speeds are nearly collinear, and an unscaled,
+        // untruncated solve cancels huge coefficients against each other —
+        // exact on the samples fitted, wild on any other motion.
+        let d: Vec<f64> = (0..p).map(|a| if ata[(a, a)] > 0.0 { 1.0 / ata[(a, a)].sqrt() } else { 0.0 }).collect();
+        let scaled = nalgebra::DMatrix::<f64>::from_fn(p, p, |a, b| d[a] * ata[(a, b)] * d[b]);
+        let rhs = nalgebra::DVector::<f64>::from_fn(p, |a, _| d[a] * atb[a]);
+        let svd = scaled.svd(true, true);
+        let smax = svd.singular_values.iter().fold(0.0f64, |m, x| m.max(*x));
+        svd.solve(&rhs, GRAM_RCOND * smax)
+            .map(|z| z.iter().zip(&d).map(|(z, d)| z * d).collect())
             .unwrap_or_else(|_| vec![0.0; p])
     };
     Regression {
