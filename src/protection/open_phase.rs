@@ -124,7 +124,7 @@ impl OpenPhaseMonitor {
             // A NaN reference compares false and is not counted as asked.
             if r.abs() >= f.open_phase_current_a {
                 *ms += m.abs();
-                *n += 1;
+                *n = n.saturating_add(1);
             }
         }
         self.samples = self.samples.saturating_add(1);
