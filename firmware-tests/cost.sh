@@ -78,6 +78,7 @@ capturing=$(num current_capturing)
 worst=$(num firmware)
 position_obs=$(num position_with_observer)
 position_alone_obs=$(num position_loop_alone_with_observer)
+position_alone_five=$(num position_loop_alone_five_input)
 within() { awk -v v="$1" -v b="$2" 'BEGIN { print (v <= b) ? "true" : "false" }'; }
 {
     echo "{"
@@ -96,6 +97,7 @@ within() { awk -v v="$1" -v b="$2" 'BEGIN { print (v <= b) ? "true" : "false" }'
     echo "    \"current_period_capturing_insns\": {\"budget\": 500, \"figure\": $capturing, \"within\": $(within "$capturing" 500), \"note\": \"a 4-signal capture recording every period\"},"
     echo "    \"worst_pwm_period_insns\": {\"budget\": 3400, \"figure\": $worst, \"within\": $(within "$worst" 3400), \"note\": \"40 % of the 8500-cycle PWM period: the longest step plus a bulk request (parameter set, capture configure, test start) as the PWM interrupt serves them\"},"
     echo "    \"position_loop_alone_with_observer_insns\": {\"budget\": 1500, \"figure\": $position_alone_obs, \"within\": $(within "$position_alone_obs" 1500), \"note\": \"position period minus speed period\"},"
+    echo "    \"position_loop_alone_five_input_insns\": {\"budget\": 1500, \"figure\": $position_alone_five, \"within\": $(within "$position_alone_five" 1500), \"note\": \"the same with an uploaded five-input observer model, the longest forward pass the drive runs\"},"
     echo "    \"flash_bytes\": {\"budget\": 98304, \"figure\": $flash, \"within\": $(within "$flash" 98304)},"
     echo "    \"static_ram_bytes\": {\"budget\": 16384, \"figure\": $ram, \"within\": $(within "$ram" 16384)}"
     echo "  }"

@@ -17,7 +17,7 @@
 //! fault (controlled stop); inputs outside the trained range are clamped by
 //! the forward pass and flagged.
 
-use crate::observer::{self, block::Weights, model, ModelKind};
+use crate::observer::{self, block::Weights, model, ModelKind, NETWORK_INPUTS};
 use crate::params::ControlParams;
 
 /// What one compensation update produced.
@@ -46,6 +46,11 @@ pub struct Compensator {
     enabled: bool,
     shift_m: f32,
     model: &'static Weights,
+    /// Sign of the last nonzero planned velocity (+1 elongation, −1
+    /// contraction; 0 before the first planned move): the observer's fifth
+    /// input, held at rest because the screw's and the seal's friction stay
+    /// turned the way the last move left them.
+    travel_direction: f32,
 }
 
 impl Default for Compensator {
@@ -56,7 +61,19 @@ impl Default for Compensator {
 
 impl Compensator {
     pub const fn new(enabled: bool) -> Self {
-        Self { enabled, shift_m: 0.0, model: &observer::block::COMPILED }
+        Self { enabled, shift_m: 0.0, model: &observer::block::COMPILED, travel_direction: 0.0 }
+    }
+
+    /// The direction of travel after a period whose planned velocity is
+    /// `planned_velocity_m_s`: its sign, or the last one while the plan is
+    /// at rest. Range `[-1, 1]` (0 only before the first planned move).
+    pub fn travel_direction(&mut self, planned_velocity_m_s: f32) -> f32 {
+        if planned_velocity_m_s > 0.0 {
+            self.travel_direction = 1.0;
+        } else if planned_velocity_m_s < 0.0 {
+            self.travel_direction = -1.0;
+        }
+        self.travel_direction
     }
 
     /// The weights the observer runs from the next period on. The shift
@@ -88,15 +105,23 @@ impl Compensator {
         self.shift_m = 0.0;
     }
 
-    /// The observer's inputs, in the order the model takes them, from the
+    /// The observer's inputs, in the order the network takes them, from the
     /// drive's own signals: encoder speed, nut speed and displacement through
-    /// the lead, and the load force (estimate or load cell).
-    pub fn inputs(p: &ControlParams, speed_rad_s: f32, motor_position_m: f32, load_force_n: f32) -> [f32; model::INPUTS] {
-        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n]
+    /// the lead, the load force (estimate or load cell), and the direction
+    /// of travel ([`Self::travel_direction`]; a four-input model leaves it
+    /// unused).
+    pub fn inputs(
+        p: &ControlParams,
+        speed_rad_s: f32,
+        motor_position_m: f32,
+        load_force_n: f32,
+        travel_direction: f32,
+    ) -> [f32; NETWORK_INPUTS] {
+        [speed_rad_s, speed_rad_s * p.metres_per_rad(), motor_position_m, load_force_n, travel_direction]
     }
 
     /// One position period.
-    pub fn update(&mut self, p: &ControlParams, inputs: [f32; model::INPUTS], dt_s: f32) -> CompensationOutput {
+    pub fn update(&mut self, p: &ControlParams, inputs: [f32; NETWORK_INPUTS], dt_s: f32) -> CompensationOutput {
         let c = &p.compensation;
         let mut out = CompensationOutput::default();
         let target = if self.enabled && model::META.kind == ModelKind::Error {

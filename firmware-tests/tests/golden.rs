@@ -9,12 +9,13 @@
 #![no_main]
 
 use firmware_tests::{check, test_main, Outcome};
-use golden::{agrees, ulps, ClosedLoop, Family, Foc, Observer, Table, Trajectory};
+use golden::{agrees, ulps, ClosedLoop, Family, Foc, Observer, Observer5, Table, Trajectory};
 
 const FOC: &[u8] = include_bytes!("../golden/data/foc.bin");
 const TRAJECTORY: &[u8] = include_bytes!("../golden/data/trajectory.bin");
 const CLOSED_LOOP: &[u8] = include_bytes!("../golden/data/closed_loop.bin");
 const OBSERVER: &[u8] = include_bytes!("../golden/data/observer.bin");
+const OBSERVER5: &[u8] = include_bytes!("../golden/data/observer5.bin");
 
 fn replay<F: Family>(bytes: &[u8]) -> Outcome {
     let table = match Table::parse(bytes) {
@@ -120,9 +121,18 @@ fn observer_matches_host() -> Outcome {
     replay::<Observer>(OBSERVER)
 }
 
+/// The drive's five-slot network: a five-input model compiled in and the
+/// same words uploaded in chunks and read back from the flash record, over
+/// a 4^4 grid × 4 directions of travel and two NaN rows; and the compiled
+/// four-input model in the five slots against itself alone.
+fn observer5_matches_host() -> Outcome {
+    replay::<Observer5>(OBSERVER5)
+}
+
 test_main!(
     foc_step_matches_host,
     trajectory_matches_host,
     closed_loop_duties_match_host,
     observer_matches_host,
+    observer5_matches_host,
 );

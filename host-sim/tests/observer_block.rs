@@ -12,8 +12,18 @@ use drive_support::Drive;
 use host_sim::drive::{self, DriveOptions};
 use host_sim::tool::observer as obs;
 use protocol_support::*;
-use servo_core::observer::block::{self, ForceSource, Part, Weights, STRUCTURE_HASH, WORDS};
-use servo_core::observer::model::{HIDDEN, INPUTS, MODEL};
+use servo_core::observer::block::{self, ForceSource, Part, Weights, STRUCTURE_HASH, WORDS_STATIC as WORDS};
+use servo_core::observer::model::{HIDDEN, INPUTS};
+
+/// The compiled model in the drive's five-slot network (its fifth input
+/// unused), as the drive runs it.
+const MODEL: Weights = servo_core::observer::lift(&servo_core::observer::model::MODEL);
+
+/// `m`'s words as a four-input block (what a host uploads for it).
+fn words4(m: &Weights) -> Vec<f32> {
+    let (w, n) = block::to_block_words(m, INPUTS);
+    w[..n].to_vec()
+}
 use servo_core::observer::{evaluate, log2_decay};
 use servo_core::params::record::{self, RecordError, RECORD_MAX};
 use servo_core::protocol::{self as proto, DriveCommand, Error, ObserverRequest, ObserverSource, Reply, Request};
@@ -36,7 +46,7 @@ fn other_model() -> Weights {
 }
 
 /// Inputs over and beyond the trained range, as a drive meets them.
-fn input_grid() -> Vec<[f32; INPUTS]> {
+fn input_grid() -> Vec<[f32; servo_core::observer::NETWORK_INPUTS]> {
     let mut out = Vec::new();
     let n = 7;
     for a in 0..n {
@@ -48,7 +58,10 @@ fn input_grid() -> Vec<[f32; INPUTS]> {
                 };
                 // Speed and nut speed tied through the lead, as on the drive.
                 let speed = f(a, 0);
-                out.push([speed, speed * 0.005 / std::f32::consts::TAU, f(b, 2), f(c, 3)]);
+                // The direction of travel as the drive feeds it: a model
+                // without the fifth input must not hear it.
+                let travel = (a % 3) as f32 - 1.0;
+                out.push([speed, speed * 0.005 / std::f32::consts::TAU, f(b, 2), f(c, 3), travel]);
             }
         }
     }
@@ -57,7 +70,7 @@ fn input_grid() -> Vec<[f32; INPUTS]> {
 
 #[test]
 fn the_compiled_model_passes_its_own_checks_and_words_round_trip() {
-    let words = block::to_words(&MODEL);
+    let words = words4(&MODEL);
     assert_eq!(words.len(), WORDS);
     let back = validate(&words).expect("the shipped model is a valid block");
     assert_eq!(back, MODEL);
@@ -66,20 +79,23 @@ fn the_compiled_model_passes_its_own_checks_and_words_round_trip() {
         assert_eq!(MODEL.log2_decay[k].to_bits(), log2_decay(s).to_bits());
     }
     // Every word lands in the part its name says.
-    assert_eq!(block::part_of(0), (Part::InputMin, 0));
-    assert_eq!(block::part_of(3 * INPUTS), (Part::Centres, 0));
-    assert_eq!(block::part_of(WORDS - 1), (Part::OutputOffset, 0));
+    assert_eq!(block::part_of(0, INPUTS), (Part::InputMin, 0));
+    assert_eq!(block::part_of(3 * INPUTS, INPUTS), (Part::Centres, 0));
+    assert_eq!(block::part_of(WORDS - 1, INPUTS), (Part::OutputOffset, 0));
     assert_eq!(words[WORDS - 3].to_bits(), MODEL.bias.to_bits());
     assert_eq!(words[3 * INPUTS + INPUTS + 2].to_bits(), MODEL.centres[1][2].to_bits());
 }
 
 #[test]
 fn bad_blocks_are_refused_naming_the_part() {
-    let good = block::to_words(&MODEL);
+    let good = words4(&MODEL);
     let refuse = |words: &[f32]| validate(words).unwrap_err();
     // Shape.
-    let e = block::validate(INPUTS as u16 + 1, HIDDEN as u16, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    let e = block::validate(INPUTS as u16 + 2, HIDDEN as u16, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
     assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverInputCount));
+    // Five inputs is a shape the drive takes, but not with four inputs' words.
+    let e = block::validate(INPUTS as u16 + 1, HIDDEN as u16, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverWordCount));
     let e = block::validate(INPUTS as u16, 32, &STRUCTURE_HASH, &good, SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
     assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverHiddenCount));
     assert_eq!(refuse(&good[..WORDS - 1]).reason, Reason::ObserverWordCount);
@@ -90,35 +106,35 @@ fn bad_blocks_are_refused_naming_the_part() {
     assert_eq!(e.part, Part::StructureHash);
     // NaN and infinity, named by part and element.
     for (i, bad) in [(5usize, f32::NAN), (3 * INPUTS + 9, f32::INFINITY), (WORDS - 3, f32::NEG_INFINITY)] {
-        let mut w = good;
+        let mut w = good.clone();
         w[i] = bad;
         let e = refuse(&w);
-        let (part, k) = block::part_of(i);
+        let (part, k) = block::part_of(i, INPUTS);
         assert_eq!((e.part, usize::from(e.index), e.reason), (part, k, Reason::MustBeFinite), "word {i}");
     }
     // Normalisation: a scale that is not the range's.
     let mut m = MODEL;
     m.input_scale[2] *= 1.01;
-    let e = refuse(&block::to_words(&m));
+    let e = refuse(&words4(&m));
     assert_eq!((e.part, e.index, e.reason), (Part::InputScale, 2, Reason::ObserverScaleMismatch));
     let mut m = MODEL;
     m.input_max[1] = m.input_min[1];
-    assert_eq!(refuse(&block::to_words(&m)).part, Part::InputMax);
+    assert_eq!(refuse(&words4(&m)).part, Part::InputMax);
     let mut m = MODEL;
     m.log2_decay[4] *= 0.5;
-    let e = refuse(&block::to_words(&m));
+    let e = refuse(&words4(&m));
     assert_eq!((e.part, e.index), (Part::Log2Decay, 4));
     let mut m = MODEL;
     m.widths[0] = -m.widths[0];
-    assert_eq!(refuse(&block::to_words(&m)).part, Part::Widths);
+    assert_eq!(refuse(&words4(&m)).part, Part::Widths);
     // The shift: a model predicting 10 × the error breaks the bound.
     let mut m = MODEL;
     m.output_scale *= 10.0;
-    let e = refuse(&block::to_words(&m));
+    let e = refuse(&words4(&m));
     assert_eq!((e.part, e.reason), (Part::Prediction, Reason::ObserverShiftBeyondBound));
     let mut m = MODEL;
     m.output_offset = 0.01;
-    assert_eq!(refuse(&block::to_words(&m)).part, Part::OutputOffset);
+    assert_eq!(refuse(&words4(&m)).part, Part::OutputOffset);
 }
 
 #[test]
@@ -189,14 +205,14 @@ fn an_upload_in_chunks_is_stored_run_and_a_bad_one_changes_nothing() {
     // Every chunk fits a frame, the largest request there is.
     let big = proto::RequestFrame { seq: u16::MAX, request: write(0, &[f32::MAX; block::CHUNK_WORDS]) };
     assert!(proto::encode(&big, &mut [0u8; proto::FRAME_MAX]).is_some());
-    let r = send_all(&mut srv, &mut d, &mut s, &block::to_words(&w));
+    let r = send_all(&mut srv, &mut d, &mut s, &words4(&w));
     let Some(Reply::Observer(st)) = r else { panic!("{r:?}") };
     assert_eq!((st.source, st.words_crc), (ObserverSource::Uploaded, proto::observer::words_crc(&w)));
     assert_eq!(*d.observer, w);
     assert_eq!(record::decode_record(&s.record).unwrap().observer.unwrap().weights, Ok(w));
     let stored = s.record.clone();
     // A NaN: refused naming the part; weights and record unchanged.
-    let mut bad = block::to_words(&MODEL);
+    let mut bad = words4(&MODEL);
     bad[3 * INPUTS + 5] = f32::NAN;
     let r = send_all(&mut srv, &mut d, &mut s, &bad);
     assert!(matches!(r, Some(Reply::Error(Error::ObserverBlock(e))) if e.part == Part::Centres && e.index == 5), "{r:?}");
@@ -211,13 +227,13 @@ fn an_upload_in_chunks_is_stored_run_and_a_bad_one_changes_nothing() {
     assert_eq!(ask(&mut srv, &mut d, &mut s, begin()), Some(Reply::Ok));
     let r = ask(&mut srv, &mut d, &mut s, write(block::CHUNK_WORDS, &[0.0; 4]));
     assert!(matches!(r, Some(Reply::Error(Error::ObserverBlock(e))) if e.reason == Reason::ObserverWordMissing), "{r:?}");
-    assert_eq!(ask(&mut srv, &mut d, &mut s, write(0, &block::to_words(&w)[..block::CHUNK_WORDS])), Some(Reply::Ok));
+    assert_eq!(ask(&mut srv, &mut d, &mut s, write(0, &words4(&w)[..block::CHUNK_WORDS])), Some(Reply::Ok));
     let r = ask(&mut srv, &mut d, &mut s, Request::Observer(ObserverRequest::Commit));
     assert!(matches!(r, Some(Reply::Error(Error::ObserverBlock(e))) if e.reason == Reason::ObserverWordMissing), "{r:?}");
     assert_eq!((*d.observer, &s.record), (w, &stored));
     // Commit needs the bridge off.
     d.mode = servo_core::Mode::Running;
-    let r = send_all(&mut srv, &mut d, &mut s, &block::to_words(&MODEL));
+    let r = send_all(&mut srv, &mut d, &mut s, &words4(&MODEL));
     assert_eq!(r, Some(Reply::Error(Error::BridgeOn)));
     d.mode = servo_core::Mode::Disabled;
     // Save keeps the uploaded weights; Load brings them back.
@@ -284,7 +300,7 @@ fn uploaded_weights_predict_bit_for_bit_as_compiled_ones_on_the_simulated_drive(
         let st = obs::upload(&mut c, &MODEL, ForceSource::LoadCell).unwrap();
         assert_eq!(st.words_crc, proto::observer::words_crc(&MODEL));
         // A refused upload names the part and keeps the weights.
-        let mut bad = block::to_words(&MODEL);
+        let mut bad = words4(&MODEL);
         bad[WORDS - 2] = f32::INFINITY;
         let e = obs::upload_words(&mut c, INPUTS as u16, HIDDEN as u16, STRUCTURE_HASH, &bad).unwrap_err().to_string();
         assert!(e.contains("output_scale") && e.contains("finite"), "{e}");
@@ -306,4 +322,77 @@ fn uploaded_weights_predict_bit_for_bit_as_compiled_ones_on_the_simulated_drive(
     assert_eq!(obs::upload(&mut c, &w, ForceSource::LoadCell).unwrap().words_crc, proto::observer::words_crc(&w));
     assert_ne!(predictions(&w), predictions(&MODEL));
     assert_eq!(obs::use_compiled(&mut c).unwrap().source, ObserverSource::Compiled);
+}
+
+/// A model that uses the fifth input: the compiled one with the direction
+/// of travel added (range −1 … 1, a small linear term and centres spread
+/// over it), still within the shift bound.
+fn five_input_model() -> Weights {
+    let mut m = MODEL;
+    m.input_min[4] = -1.0;
+    m.input_max[4] = 1.0;
+    m.input_scale[4] = 1.0;
+    m.linear[4] = 0.05;
+    for (k, c) in m.centres.iter_mut().enumerate() {
+        c[4] = k as f32 / 4.0 - 1.0;
+    }
+    m
+}
+
+#[test]
+fn four_and_five_input_blocks_both_validate_and_the_fifth_input_is_unheard_by_a_four_input_model() {
+    use servo_core::observer::{model, NETWORK_INPUTS};
+    // The compiled four-input model in the five slots predicts bit for bit
+    // as on its own, whatever the fifth input says.
+    for x in input_grid() {
+        let own = evaluate(&model::MODEL, [x[0], x[1], x[2], x[3]]);
+        let lifted = evaluate(&MODEL, x);
+        assert_eq!((lifted.value_m.to_bits(), lifted.clamped, lifted.valid), (own.value_m.to_bits(), own.clamped, own.valid), "{x:?}");
+    }
+    assert_eq!(block::inputs_of(&MODEL), 4);
+    // A five-input block: 87 words, its own hash; it hears the fifth input.
+    let m5 = five_input_model();
+    assert_eq!(block::inputs_of(&m5), NETWORK_INPUTS);
+    let (w5, n5) = block::to_block_words(&m5, NETWORK_INPUTS);
+    assert_eq!(n5, block::WORDS);
+    let h5 = block::structure_hash_for(NETWORK_INPUTS, ForceSource::LoadCell);
+    assert_ne!(h5, STRUCTURE_HASH);
+    let back = block::validate(NETWORK_INPUTS as u16, HIDDEN as u16, &h5, &w5[..n5], SHIFT_MAX_M, ForceSource::LoadCell).unwrap();
+    assert_eq!(back, m5);
+    let x = [0.0, 0.0, 0.2, 1000.0];
+    let (up, down) = (evaluate(&m5, [x[0], x[1], x[2], x[3], 1.0]), evaluate(&m5, [x[0], x[1], x[2], x[3], -1.0]));
+    assert_ne!(up.value_m, down.value_m, "the fifth input changes a five-input model's prediction");
+    // Shape and hash follow the input count: refused, named.
+    let e = block::validate(NETWORK_INPUTS as u16, HIDDEN as u16, &STRUCTURE_HASH, &w5[..n5], SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    assert_eq!(e.part, Part::StructureHash);
+    let e = block::validate(NETWORK_INPUTS as u16, HIDDEN as u16, &h5, &words4(&MODEL), SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverWordCount));
+    let e = block::validate(6, HIDDEN as u16, &h5, &w5[..n5], SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    assert_eq!((e.part, e.reason), (Part::Shape, Reason::ObserverInputCount));
+    // An empty range of the fifth input is refused as any other.
+    let mut bad = m5;
+    bad.input_max[4] = bad.input_min[4];
+    let (wb, nb) = block::to_block_words(&bad, NETWORK_INPUTS);
+    let e = block::validate(NETWORK_INPUTS as u16, HIDDEN as u16, &h5, &wb[..nb], SHIFT_MAX_M, ForceSource::LoadCell).unwrap_err();
+    assert_eq!((e.part, e.index), (Part::InputMax, 4));
+    // Both kinds go through the flash record and come back as they were.
+    let mut buf = [0u8; RECORD_MAX];
+    for w in [other_model(), m5] {
+        let rec = record::encode(&ControlParams::DEFAULT, Some(&w), &mut buf).unwrap().to_vec();
+        assert_eq!(record::decode_record(&rec).unwrap().observer.unwrap().weights, Ok(w));
+    }
+}
+
+#[test]
+fn a_five_input_model_uploads_and_the_drive_reports_its_shape() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = Drive::start(Some(dir.path().join("flash.bin")));
+    let mut c = d.connect();
+    let m5 = five_input_model();
+    let st = obs::upload(&mut c, &m5, ForceSource::LoadCell).unwrap();
+    assert_eq!((st.inputs, st.words), (5, block::WORDS as u16));
+    assert_eq!(st.words_crc, proto::observer::words_crc(&m5));
+    assert_eq!(st.structure_hash, block::structure_hash_for(5, ForceSource::LoadCell));
+    let st = obs::upload(&mut c, &MODEL, ForceSource::LoadCell).unwrap();
+    assert_eq!((st.inputs, st.words, st.structure_hash), (4, WORDS as u16, STRUCTURE_HASH));
 }

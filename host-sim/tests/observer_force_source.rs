@@ -14,7 +14,9 @@ use clap::Parser;
 use host_sim::trainer::dataset::{Dataset, DatasetLimits, ForceSource as DataForce};
 use host_sim::trainer::TrainArgs;
 use servo_core::observer::block::{self, ForceSource, Part, STRUCTURE_HASH, STRUCTURE_HASH_ESTIMATE};
-use servo_core::observer::model::{HIDDEN, INPUTS, MODEL};
+use servo_core::observer::model::{HIDDEN, INPUTS};
+
+const MODEL: servo_core::observer::block::Weights = servo_core::observer::lift(&servo_core::observer::model::MODEL);
 use servo_core::params::record;
 use servo_core::protocol::ObserverSource;
 use servo_core::Reason;
@@ -25,8 +27,9 @@ const FORCE_PARAM: &str = "compensation.force_from_estimate";
 #[test]
 fn the_two_force_sources_hash_apart_and_each_refusal_names_the_other() {
     assert_ne!(STRUCTURE_HASH, STRUCTURE_HASH_ESTIMATE);
-    let words = block::to_words(&MODEL);
-    let check = |hash: &[u8; 8], drive: ForceSource| block::validate(INPUTS as u16, HIDDEN as u16, hash, &words, SHIFT_MAX_M, drive);
+    let (words, n) = block::to_block_words(&MODEL, INPUTS);
+    let words = &words[..n];
+    let check = |hash: &[u8; 8], drive: ForceSource| block::validate(INPUTS as u16, HIDDEN as u16, hash, words, SHIFT_MAX_M, drive);
     assert!(check(&STRUCTURE_HASH, ForceSource::LoadCell).is_ok());
     assert!(check(&STRUCTURE_HASH_ESTIMATE, ForceSource::Estimate).is_ok());
     let e = check(&STRUCTURE_HASH_ESTIMATE, ForceSource::LoadCell).unwrap_err();
@@ -39,7 +42,7 @@ fn the_two_force_sources_hash_apart_and_each_refusal_names_the_other() {
     assert_eq!(check(&other, ForceSource::Estimate).unwrap_err().reason, Reason::ObserverStructureHash);
     // Staging checks the same at Begin, before any word is sent.
     let mut st = block::Staging::new();
-    let e = st.begin(INPUTS as u16, HIDDEN as u16, block::WORDS as u16, STRUCTURE_HASH, ForceSource::Estimate).unwrap_err();
+    let e = st.begin(INPUTS as u16, HIDDEN as u16, block::WORDS_STATIC as u16, STRUCTURE_HASH, ForceSource::Estimate).unwrap_err();
     assert_eq!(e.reason, Reason::ObserverTrainedOnLoadCell);
 }
 

@@ -95,9 +95,10 @@ fn the_shipped_estimate_weights_meet_the_bar_on_the_held_out_paper_run() {
     let rig = without_load_cell(&nominal());
     // What the drive checks when the file is uploaded (shape, hash,
     // normalisation, the shift at the corners of the trained range).
-    let words = block::to_words(w);
+    let (words, n) = block::to_block_words(w, INPUTS);
+    let words = &words[..n];
     let shift_max = rig.control.faults.observer_shift_max_m;
-    block::validate(INPUTS as u16, HIDDEN as u16, &block::STRUCTURE_HASH_ESTIMATE, &words, shift_max, block::ForceSource::Estimate)
+    block::validate(INPUTS as u16, HIDDEN as u16, &block::STRUCTURE_HASH_ESTIMATE, words, shift_max, block::ForceSource::Estimate)
         .expect("a drive reading the estimate accepts the shipped file");
     let r = reduction(&rig, &StrokeCycle::paper(6501), Some(w)).expect("runs");
     assert!(r.reduction_pct >= BAR_PCT, "{r:?}");

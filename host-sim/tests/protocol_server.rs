@@ -139,7 +139,7 @@ fn records_round_trip_and_every_corruption_is_named() {
     p.speed_pi.kp = 0.77;
     let mut buf = [0u8; RECORD_MAX];
     // With an observer block: the largest record.
-    let rec = record::encode(&p, Some(&servo_core::observer::model::MODEL), &mut buf).unwrap().to_vec();
+    let rec = record::encode(&p, Some(&servo_core::observer::block::COMPILED), &mut buf).unwrap().to_vec();
     println!("record: {} bytes of {RECORD_MAX}", rec.len());
     assert!(rec.len() < RECORD_MAX * 7 / 8, "margin for new fields");
     assert_eq!(record::decode(&rec).map(|v| *v.get()), Ok(p));

@@ -38,7 +38,8 @@ fn a_valid_file_loads_runs_in_order_with_their_samples() {
     assert_eq!((ds.runs[1].id.as_str(), ds.runs[1].len(), ds.runs[1].direction), ("b", 7, Direction::Contraction));
     assert_eq!(ds.runs[1].first_line, 2);
     assert_eq!(ds.runs[0].first_line, 9);
-    assert_eq!(ds.runs[0].inputs[1], [10.001, 0.01, 0.101, 1000.0]);
+    assert_eq!(ds.runs[0].inputs[1], [10.001, 0.01, 0.101, 1000.0, 0.0]);
+    assert_eq!(ds.inputs, 4, "no travel_direction column: the paper's four inputs");
     assert_eq!(ds.name, "one.csv");
 }
 

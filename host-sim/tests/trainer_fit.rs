@@ -1,6 +1,6 @@
 //! End-to-end training on data whose truth is known.
 
-use host_sim::trainer::dataset::{Dataset, Direction, ModelKind, Run, SplitSpec, N_INPUTS};
+use host_sim::trainer::dataset::{Dataset, Direction, ModelKind, Run, SplitSpec, N_INPUTS, STATIC_INPUTS};
 use host_sim::trainer::ibas::IbasOptions;
 use host_sim::trainer::network::{Normaliser, Rbf, TrainedModel};
 use host_sim::trainer::optim::{minimise, Method, OptimOptions};
@@ -9,9 +9,15 @@ use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// Physical input ranges the teacher's inputs are drawn from.
-const LO: [f64; N_INPUTS] = [-350.0, -0.28, 0.0, 200.0];
-const HI: [f64; N_INPUTS] = [350.0, 0.28, 0.45, 1500.0];
+/// Physical input ranges the teacher's inputs are drawn from (the paper's
+/// four; the fifth slot unused).
+const LO: [f64; N_INPUTS] = [-350.0, -0.28, 0.0, 200.0, 0.0];
+const HI: [f64; N_INPUTS] = [350.0, 0.28, 0.45, 1500.0, 0.0];
+
+/// A point of the box (the fifth, unused slot at 0).
+fn draw(rng: &mut ChaCha8Rng) -> [f64; N_INPUTS] {
+    std::array::from_fn(|j| if j < STATIC_INPUTS { rng.random_range(LO[j]..HI[j]) } else { 0.0 })
+}
 
 /// A known RBF network (5 units) in metres, over the box above.
 fn teacher() -> TrainedModel {
@@ -21,7 +27,7 @@ fn teacher() -> TrainedModel {
     let n = p.len();
     p[n - 1] = 0.3; // bias
     for k in 0..5 {
-        p[5 * N_INPUTS + k] = 0.9_f64.ln(); // widths 0.9
+        p[5 * STATIC_INPUTS + k] = 0.9_f64.ln(); // widths 0.9
     }
     let norm = Normaliser { input_min: LO, input_max: HI, output_offset: 2e-4, output_scale: 1e-4 };
     TrainedModel { kind: ModelKind::Error, rbf, params: p, norm, force_source: None }
@@ -46,7 +52,7 @@ fn teacher_dataset(runs: usize, per_run: usize) -> Dataset {
                 terminal_error_m: vec![],
             };
             for s in 0..per_run {
-                let x: [f64; N_INPUTS] = std::array::from_fn(|j| rng.random_range(LO[j]..HI[j]));
+                let x = draw(&mut rng);
                 let e = t.predict(&x).0;
                 r.time_s.push(s as f64 * 1e-3);
                 r.inputs.push(x);
@@ -193,7 +199,7 @@ fn inputs_outside_the_trained_range_are_reported_and_clamped() {
     assert!(r.test.below_range_per_input[0] > 0 && r.test.below_range_per_input[1] > 0);
     assert!(r.warnings.iter().any(|w| w.contains("outside the trained range")));
     let m = &r.model;
-    let mut x = [m.norm.input_min[0], m.norm.input_min[1], 0.2, 1000.0];
+    let mut x = [m.norm.input_min[0], m.norm.input_min[1], 0.2, 1000.0, 0.0];
     let (at_edge, c0) = m.predict(&x);
     x[0] -= 500.0;
     x[1] -= 1.0;
@@ -209,7 +215,7 @@ fn the_physics_baseline_recovers_coefficients_of_data_in_its_span() {
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     let mut s = Samples::default();
     for _ in 0..500 {
-        let x: [f64; N_INPUTS] = std::array::from_fn(|j| rng.random_range(LO[j]..HI[j]));
+        let x = draw(&mut rng);
         let f = [1.0, x[3], x[3] * x[2], x[3].signum() * x[3].abs().powf(2.0 / 3.0), x[1].signum(), x[1], x[2]];
         s.target.push(f.iter().zip(&truth).map(|(a, b)| a * b).sum());
         s.length_m.push(x[2]);

@@ -58,7 +58,23 @@ fn telemetry_logs_become_runs_by_direction_with_the_scale_as_target() {
             assert!((x[1] - x[0] * lead / std::f64::consts::TAU).abs() < 1e-12, "nut speed through the lead");
             assert!(e.abs() < 2e-3, "terminal error {e} m");
         }
+        // The direction of travel, taken from the telemetry's planned
+        // position: the run's own direction from its first sample, held
+        // through the standstill, and turned only where the next move's
+        // plan starts, before the rod's speed crosses the run threshold
+        // (at most 50 ms of samples at the end).
+        let want = if r.direction == Direction::Elongation { 1.0 } else { -1.0 };
+        let d: Vec<f64> = r.inputs.iter().map(|x| x[4]).collect();
+        let turn = d.iter().position(|&v| v != want).unwrap_or(d.len());
+        assert!(turn > 0 && d[turn..].iter().all(|&v| v == -want), "{}: travel direction {d:?}", r.id);
+        assert!(r.time_s[r.len() - 1] - r.time_s[turn.min(r.len() - 1)] < 0.05, "{}: turned {} s before the run's end", r.id, r.time_s[r.len() - 1] - r.time_s[turn.min(r.len() - 1)]);
     }
+    assert_eq!((ds.inputs, s.inputs), (5, 5), "the telemetry gives the fifth input");
+    assert!(s.travel_direction_from.iter().all(|f| f == "position_reference_m"), "{:?}", s.travel_direction_from);
+    // Asked for the paper's four inputs only, the fifth slot is left empty.
+    let (ds4, s4) = convert(&files, &LogOptions { static_inputs: true, ..options() }).unwrap();
+    assert_eq!((ds4.inputs, s4.inputs), (4, 4));
+    assert!(ds4.runs.iter().flat_map(|r| &r.inputs).all(|x| x[4] == 0.0));
     // Under full payload the rod sags below the motor side: the error has
     // the weight's sign and a size of tens of micrometres.
     let heavy: Vec<f64> = ds.runs.iter().filter(|r| r.source.ends_with("payload_2.csv")).flat_map(|r| r.terminal_error_m.clone()).collect();
@@ -68,7 +84,8 @@ fn telemetry_logs_become_runs_by_direction_with_the_scale_as_target() {
     let out = dir.path().join("dataset.csv");
     ds.write_csv(&out).unwrap();
     let back = Dataset::load(&out, &DatasetLimits::default()).unwrap();
-    assert_eq!(back.runs.len(), ds.runs.len());
+    assert_eq!((back.runs.len(), back.inputs), (ds.runs.len(), 5));
+    assert_eq!(back.runs[0].inputs[0][4], ds.runs[0].inputs[0][4]);
     assert!(back.runs[0].tilt_swing_deg.is_nan());
 }
 

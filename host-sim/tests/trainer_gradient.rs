@@ -21,12 +21,14 @@ fn random_batch(rng: &mut ChaCha8Rng, n: usize) -> Batch {
 #[test]
 fn analytic_gradient_matches_finite_differences() {
     let mut rng = ChaCha8Rng::seed_from_u64(42);
-    for (h, lambda, linear) in [(1usize, 0.0, false), (5, 1e-3, true), (12, 0.05, false), (7, 0.0, true)] {
-        let rbf = Rbf::with_linear(h, linear);
+    // Four inputs (the paper's) and five (with the direction of travel).
+    for (h, lambda, linear, inputs) in [(1usize, 0.0, false, 4), (5, 1e-3, true, 4), (12, 0.05, false, 4), (7, 0.0, true, 4), (6, 1e-3, true, 5), (3, 0.0, false, 5)] {
+        let rbf = Rbf::with_linear(h, linear).with_inputs(inputs);
         let batch = random_batch(&mut rng, 60);
         for _trial in 0..3 {
             let mut p = rbf.init_random(&mut rng);
-            assert_eq!(p.len(), h * (N_INPUTS + 2) + 1 + if linear { N_INPUTS } else { 0 });
+            assert_eq!(p.len(), h * (inputs + 2) + 1 + if linear { inputs } else { 0 });
+            assert!(inputs <= N_INPUTS);
             // Move off the symmetric start: non-zero bias, varied widths.
             for v in p.iter_mut() {
                 *v += rng.random_range(-0.3..0.3);

@@ -6,7 +6,7 @@ use servo_core::observer::{evaluate, log2_decay, predict, ModelKind};
 
 #[test]
 fn the_committed_model_is_well_formed() {
-    assert_eq!(INPUT_NAMES, host_sim::trainer::dataset::INPUT_COLUMNS);
+    assert_eq!(INPUT_NAMES[..], host_sim::trainer::dataset::INPUT_COLUMNS[..INPUTS]);
     assert_eq!(MODEL.widths.len(), HIDDEN);
     for j in 0..INPUTS {
         let (lo, hi, s) = (MODEL.input_min[j], MODEL.input_max[j], MODEL.input_scale[j]);

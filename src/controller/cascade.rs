@@ -236,7 +236,8 @@ impl Controller {
         // which the start-up torque watch rightly reads as a rotor that
         // does not follow its torque.
         let (observer_shift, observer_rate_m_s) = if self.mode == Mode::Running && !self.brake_opening() {
-            let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n());
+            let travel = self.compensator.travel_direction(r.velocity_m_s);
+            let inputs = Compensator::inputs(&self.params, self.speed_rad_s(), self.motor_position_m(), self.load.force_n(), travel);
             let c = self.compensator.update(&self.params, inputs, self.derived.position_period_s);
             if c.limited {
                 self.limits.insert(LimitFlags::COMPENSATION);

@@ -10,28 +10,50 @@
 //! whole or not at all: [`validate`] names the first part that is wrong and
 //! the running weights stay as they were.
 //!
+//! A block has four inputs (the paper's static map, 75 words: the compiled
+//! model and every block uploaded before the fifth input existed) or five
+//! (with the direction of travel, 87 words); the input count is part of
+//! its shape and of its structure hash. Either runs in the five-slot
+//! network ([`super::lift`]): the drive keeps and runs every model in that
+//! layout, and the host sees the block in its own.
+//!
 //! The words travel and are stored as their bit patterns, and the forward
 //! pass is the same function for the compiled and the uploaded model, so a
 //! prediction from uploaded weights is bit for bit the one of the same
 //! weights compiled in.
 
-use super::model::{HIDDEN, INPUTS, INPUT_NAMES};
-use super::RbfModel;
+use super::model::HIDDEN;
+use super::{RbfModel, NETWORK_INPUTS as INPUTS, NETWORK_INPUT_NAMES as INPUT_NAMES, STATIC_INPUTS};
 use crate::reason::Reason;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-/// The model the firmware runs: the compiled one or an uploaded block.
+/// The model the firmware runs: the compiled one or an uploaded block, in
+/// the network's five input slots.
 pub type Weights = RbfModel<INPUTS, HIDDEN>;
 
 /// The compiled model at one address (a `const` has none: each `&MODEL`
 /// may be another copy), so "runs the compiled weights" is a pointer
 /// comparison and a reference to it is what the controller starts with.
-pub static COMPILED: Weights = super::model::MODEL;
+pub static COMPILED: Weights = super::lift(&super::model::MODEL);
 
-/// Words per block: 4 per input (min, max, scale, linear), `INPUTS + 3` per
-/// hidden unit (centre, width, decay, weight), bias, output scale, offset.
-pub const WORDS: usize = 4 * INPUTS + HIDDEN * (INPUTS + 3) + 3;
+/// Words of a block with `inputs` inputs: 4 per input (min, max, scale,
+/// linear), `inputs + 3` per hidden unit (centre, width, decay, weight),
+/// bias, output scale, offset.
+pub const fn words_for(inputs: usize) -> usize {
+    4usize.saturating_mul(inputs).saturating_add(HIDDEN.saturating_mul(inputs.saturating_add(3))).saturating_add(3)
+}
+
+/// Words of a five-input block: the layout the drive stores and runs.
+pub const WORDS: usize = words_for(INPUTS);
+
+/// Words of a four-input block.
+pub const WORDS_STATIC: usize = words_for(STATIC_INPUTS);
+
+/// The input counts a block may have.
+pub const fn input_count_ok(inputs: usize) -> bool {
+    inputs == STATIC_INPUTS || inputs == INPUTS
+}
 
 /// Words one upload chunk carries at most (a frame stays under
 /// `protocol::FRAME_MAX`).
@@ -94,20 +116,26 @@ impl ForceSource {
     }
 }
 
-/// The structure hash of this firmware's network trained on `source`:
-/// FNV-1a over its kind, its inputs by name and order, the input and hidden
-/// counts, and, for the estimate, the force source. The load cell's hash is
-/// the one without a force-source part, as firmware before the force source
-/// was hashed wrote it, so records saved with load-cell weights stay valid.
-pub const fn structure_hash(source: ForceSource) -> [u8; 8] {
+/// The structure hash of this firmware's network with its first `inputs`
+/// inputs (4 or 5) trained on `source`: FNV-1a over its kind, those inputs
+/// by name and order, the input and hidden counts, and, for the estimate,
+/// the force source. The four-input load cell's hash is the one without a
+/// force-source part, as firmware before the force source was hashed wrote
+/// it, so blocks of that firmware keep their hash.
+pub const fn structure_hash_for(inputs: usize, source: ForceSource) -> [u8; 8] {
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, b"gaussian-rbf+linear;output=terminal_error_m;inputs=");
     let mut names: &[&str] = &INPUT_NAMES;
+    let mut n = 0;
     while let [name, rest @ ..] = names {
+        if n >= inputs {
+            break;
+        }
         h = fnv1a(h, name.as_bytes());
         h = fnv1a(h, b",");
         names = rest;
+        n = n.saturating_add(1);
     }
-    h = fnv1a(h, &(INPUTS as u32).to_le_bytes());
+    h = fnv1a(h, &(inputs as u32).to_le_bytes());
     h = fnv1a(h, &(HIDDEN as u32).to_le_bytes());
     if let ForceSource::Estimate = source {
         h = fnv1a(h, b";force_source=estimate");
@@ -115,29 +143,47 @@ pub const fn structure_hash(source: ForceSource) -> [u8; 8] {
     h.to_le_bytes()
 }
 
-/// What the network is (kind, inputs, counts) trained on the load cell. A
-/// block trained for another network carries another hash and is refused.
+/// The four-input structure hash on `source` (the compiled model's shape).
+pub const fn structure_hash(source: ForceSource) -> [u8; 8] {
+    structure_hash_for(STATIC_INPUTS, source)
+}
+
+/// The four-input network trained on the load cell. A block trained for
+/// another network carries another hash and is refused.
 pub const STRUCTURE_HASH: [u8; 8] = structure_hash(ForceSource::LoadCell);
 
 /// The same network trained on the drive's force estimate.
 pub const STRUCTURE_HASH_ESTIMATE: [u8; 8] = structure_hash(ForceSource::Estimate);
 
-/// A block's hash checked against this network on the drive's force input
-/// `source`: another network, or the right network trained on the other
-/// force input (named).
-fn check_hash(structure_hash: &[u8; 8], source: ForceSource) -> Result<(), BlockError> {
-    if *structure_hash == structure_hash_of(source) {
+/// A block's hash checked against this network with `inputs` inputs on the
+/// drive's force input `source`: another network, or the right network
+/// trained on the other force input (named).
+fn check_hash(structure_hash: &[u8; 8], inputs: usize, source: ForceSource) -> Result<(), BlockError> {
+    if *structure_hash == structure_hash_for(inputs, source) {
         return Ok(());
     }
     let other = source.other();
-    let reason = if *structure_hash == structure_hash_of(other) { other.mismatch() } else { Reason::ObserverStructureHash };
+    let reason = if *structure_hash == structure_hash_for(inputs, other) { other.mismatch() } else { Reason::ObserverStructureHash };
     Err(err(Part::StructureHash, 0, reason))
 }
 
-const fn structure_hash_of(source: ForceSource) -> [u8; 8] {
-    match source {
-        ForceSource::LoadCell => STRUCTURE_HASH,
-        ForceSource::Estimate => STRUCTURE_HASH_ESTIMATE,
+/// Whether the fifth input slot of `m` is unused (a four-input model).
+fn fifth_unused(m: &Weights) -> bool {
+    let last = INPUTS.saturating_sub(1);
+    let zero = |a: &[f32; INPUTS]| a.get(last).is_some_and(|v| v.to_bits() == 0);
+    zero(&m.input_min)
+        && zero(&m.input_max)
+        && zero(&m.input_scale)
+        && zero(&m.linear)
+        && m.centres.iter().all(|c| c.get(last).is_some_and(|v| v.to_bits() == (-1.0f32).to_bits()))
+}
+
+/// The inputs `m` uses: 4 when its fifth slot is unused, else 5.
+pub fn inputs_of(m: &Weights) -> usize {
+    if fifth_unused(m) {
+        STATIC_INPUTS
+    } else {
+        INPUTS
     }
 }
 
@@ -199,17 +245,18 @@ const fn err(part: Part, index: usize, reason: Reason) -> BlockError {
     BlockError { part, index: if index > u16::MAX as usize { u16::MAX } else { index as u16 }, reason }
 }
 
-/// Part of word `i` and its index in the part.
-pub fn part_of(i: usize) -> (Part, usize) {
+/// Part of word `i` of a block with `inputs` inputs, and its index in the
+/// part.
+pub fn part_of(i: usize, inputs: usize) -> (Part, usize) {
     let spans: [(Part, usize); 11] = [
-        (Part::InputMin, INPUTS),
-        (Part::InputMax, INPUTS),
-        (Part::InputScale, INPUTS),
-        (Part::Centres, HIDDEN * INPUTS),
+        (Part::InputMin, inputs),
+        (Part::InputMax, inputs),
+        (Part::InputScale, inputs),
+        (Part::Centres, HIDDEN.saturating_mul(inputs)),
         (Part::Widths, HIDDEN),
         (Part::Log2Decay, HIDDEN),
         (Part::Weights, HIDDEN),
-        (Part::Linear, INPUTS),
+        (Part::Linear, inputs),
         (Part::Bias, 1),
         (Part::OutputScale, 1),
         (Part::OutputOffset, 1),
@@ -225,31 +272,51 @@ pub fn part_of(i: usize) -> (Part, usize) {
     (Part::Shape, i)
 }
 
-/// The model's words in block order.
+/// The model's words in block order, in the five-slot layout the drive
+/// stores and runs.
 pub fn to_words(m: &Weights) -> [f32; WORDS] {
-    let mut out = [0.0f32; WORDS];
-    let centres = m.centres.iter().flat_map(|c| c.iter());
-    let src = m
-        .input_min
-        .iter()
-        .chain(m.input_max.iter())
-        .chain(m.input_scale.iter())
-        .chain(centres)
-        .chain(m.widths.iter())
-        .chain(m.log2_decay.iter())
-        .chain(m.weights.iter())
-        .chain(m.linear.iter())
-        .chain(core::iter::once(&m.bias))
-        .chain(core::iter::once(&m.output_scale))
-        .chain(core::iter::once(&m.output_offset));
-    for (o, &v) in out.iter_mut().zip(src) {
-        *o = v;
-    }
-    out
+    to_block_words(m, INPUTS).0
 }
 
-/// The model of a block's words (no checks: see [`validate`]).
+/// The model's words as a block of its first `inputs` inputs (the first
+/// `n` of the array, `n` returned): what a host uploads, and what the
+/// drive's CRC in the status covers.
+pub fn to_block_words(m: &Weights, inputs: usize) -> ([f32; WORDS], usize) {
+    let mut out = [0.0f32; WORDS];
+    let n = inputs.min(INPUTS);
+    fn first(a: &[f32; INPUTS], n: usize) -> core::iter::Take<core::iter::Copied<core::slice::Iter<'_, f32>>> {
+        a.iter().copied().take(n)
+    }
+    let centres = m.centres.iter().flat_map(move |c| c.iter().copied().take(n));
+    let src = first(&m.input_min, n)
+        .chain(first(&m.input_max, n))
+        .chain(first(&m.input_scale, n))
+        .chain(centres)
+        .chain(m.widths.iter().copied())
+        .chain(m.log2_decay.iter().copied())
+        .chain(m.weights.iter().copied())
+        .chain(first(&m.linear, n))
+        .chain(core::iter::once(m.bias))
+        .chain(core::iter::once(m.output_scale))
+        .chain(core::iter::once(m.output_offset));
+    let mut count = 0usize;
+    for (o, v) in out.iter_mut().zip(src) {
+        *o = v;
+        count = count.saturating_add(1);
+    }
+    (out, count)
+}
+
+/// The model of a five-input block's words (no checks: see [`validate`]).
 pub fn from_words(w: &[f32; WORDS]) -> Weights {
+    from_block_words(w, INPUTS)
+}
+
+/// The model of a block of `inputs` inputs (its words first in `w`), in
+/// the five-slot layout: slots past `inputs` unused, as [`super::lift`]
+/// leaves them. No checks: see [`validate`].
+pub fn from_block_words(w: &[f32], inputs: usize) -> Weights {
+    let n = inputs.min(INPUTS);
     let mut m = Weights {
         input_min: [0.0; INPUTS],
         input_max: [0.0; INPUTS],
@@ -263,22 +330,28 @@ pub fn from_words(w: &[f32; WORDS]) -> Weights {
         output_scale: 0.0,
         output_offset: 0.0,
     };
+    for c in m.centres.iter_mut() {
+        *c = [-1.0; INPUTS];
+    }
     let mut words = w.iter().copied();
     let mut fill = |dst: &mut [f32]| {
         for d in dst.iter_mut() {
             *d = words.next().unwrap_or(0.0);
         }
     };
-    fill(&mut m.input_min);
-    fill(&mut m.input_max);
-    fill(&mut m.input_scale);
+    fn used(a: &mut [f32; INPUTS], n: usize) -> &mut [f32] {
+        a.get_mut(..n).unwrap_or(&mut [])
+    }
+    fill(used(&mut m.input_min, n));
+    fill(used(&mut m.input_max, n));
+    fill(used(&mut m.input_scale, n));
     for c in m.centres.iter_mut() {
-        fill(c);
+        fill(used(c, n));
     }
     fill(&mut m.widths);
     fill(&mut m.log2_decay);
     fill(&mut m.weights);
-    fill(&mut m.linear);
+    fill(used(&mut m.linear, n));
     let mut tail = [0.0f32; 3];
     fill(&mut tail);
     let [bias, scale, offset] = tail;
@@ -299,10 +372,12 @@ const DERIVED_REL: f32 = 1e-5;
 
 /// Checks a block against this firmware's network, the drive's force input
 /// `source` and its shift bound (`faults.observer_shift_max_m`), and
-/// returns its model:
-/// - shape: `inputs`, `hidden` and the word count are this network's;
-/// - the structure hash is this network's trained on `source` (weights
-///   trained on the other force input are refused, naming it);
+/// returns its model in the five-slot layout:
+/// - shape: `inputs` is 4 or 5, `hidden` this network's, and the word
+///   count that of `inputs` inputs;
+/// - the structure hash is this network's with `inputs` inputs trained on
+///   `source` (weights trained on the other force input are refused,
+///   naming it);
 /// - every word finite;
 /// - normalisation: `input_max > input_min`, `input_scale = 2 / (max − min)`;
 ///   widths positive and `log2_decay = log₂e / 2σ²`; output scale positive;
@@ -316,26 +391,26 @@ pub fn validate(
     shift_max_m: f32,
     source: ForceSource,
 ) -> Result<Weights, BlockError> {
-    if usize::from(inputs) != INPUTS {
+    let n = usize::from(inputs);
+    if !input_count_ok(n) {
         return Err(err(Part::Shape, 0, Reason::ObserverInputCount));
     }
     if usize::from(hidden) != HIDDEN {
         return Err(err(Part::Shape, 1, Reason::ObserverHiddenCount));
     }
-    if words.len() != WORDS {
+    if words.len() != words_for(n) {
         return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
     }
-    check_hash(structure_hash, source)?;
-    let mut w = [0.0f32; WORDS];
-    for (i, (d, &s)) in w.iter_mut().zip(words.iter()).enumerate() {
+    check_hash(structure_hash, n, source)?;
+    for (i, &s) in words.iter().enumerate() {
         if !s.is_finite() {
-            let (part, k) = part_of(i);
+            let (part, k) = part_of(i, n);
             return Err(err(part, k, Reason::MustBeFinite));
         }
-        *d = s;
     }
-    let m = from_words(&w);
-    for (j, ((&lo, &hi), &scale)) in m.input_min.iter().zip(m.input_max.iter()).zip(m.input_scale.iter()).enumerate() {
+    let m = from_block_words(words, n);
+    let ranges = m.input_min.iter().zip(m.input_max.iter()).zip(m.input_scale.iter()).take(n);
+    for (j, ((&lo, &hi), &scale)) in ranges.enumerate() {
         if !(hi > lo) {
             return Err(err(Part::InputMax, j, Reason::ObserverRangeEmpty));
         }
@@ -359,8 +434,9 @@ pub fn validate(
     if !(m.output_offset.abs() <= shift_max_m) {
         return Err(err(Part::OutputOffset, 0, Reason::ObserverShiftBeyondBound));
     }
-    // Corners of the trained range (bit j of `c`: input j at its max)…
-    for c in 0..(1usize << INPUTS) {
+    // Corners of the trained range (bit j of `c`: input j at its max; an
+    // unused slot's range is the point 0)…
+    for c in 0..(1usize << n) {
         let mut x = m.input_min;
         for (j, xj) in x.iter_mut().enumerate() {
             if c & (1 << j) != 0 {
@@ -372,13 +448,24 @@ pub fn validate(
     // …and every centre inside it, in physical units.
     for (k, centre) in m.centres.iter().enumerate() {
         let mut x = [0.0f32; INPUTS];
-        for (j, (xj, &cz)) in x.iter_mut().zip(centre.iter()).enumerate() {
+        for (j, (xj, &cz)) in x.iter_mut().zip(centre.iter()).enumerate().take(n) {
             let (lo, hi) = (m.input_min.get(j).copied().unwrap_or(0.0), m.input_max.get(j).copied().unwrap_or(0.0));
             *xj = crate::math::clamp(lo + (cz + 1.0) * 0.5 * (hi - lo), lo, hi);
         }
-        check_shift(&m, x, shift_max_m, (1usize << INPUTS).saturating_add(k))?;
+        check_shift(&m, x, shift_max_m, (1usize << n).saturating_add(k))?;
     }
     Ok(m)
+}
+
+/// Checks a model kept in the five-slot layout (a stored record's words)
+/// as the block it was uploaded as: four inputs when `structure_hash` is a
+/// four-input hash and the fifth slot is unused, else five.
+pub fn validate_stored(structure_hash: &[u8; 8], words: &[f32; WORDS], shift_max_m: f32, source: ForceSource) -> Result<Weights, BlockError> {
+    let m = from_words(words);
+    let four = [ForceSource::LoadCell, ForceSource::Estimate].iter().any(|&s| *structure_hash == structure_hash_for(STATIC_INPUTS, s));
+    let n = if four && fifth_unused(&m) { STATIC_INPUTS } else { INPUTS };
+    let (w, len) = to_block_words(&m, n);
+    validate(n as u16, HIDDEN as u16, structure_hash, w.get(..len).unwrap_or(&[]), shift_max_m, source)
 }
 
 fn check_shift(m: &Weights, x: [f32; INPUTS], shift_max_m: f32, point: usize) -> Result<(), BlockError> {
@@ -421,16 +508,17 @@ impl Staging {
     pub fn begin(&mut self, inputs: u16, hidden: u16, words: u16, structure_hash: [u8; 8], source: ForceSource) -> Result<(), BlockError> {
         self.open = false;
         self.received = 0;
-        if usize::from(inputs) != INPUTS {
+        let n = usize::from(inputs);
+        if !input_count_ok(n) {
             return Err(err(Part::Shape, 0, Reason::ObserverInputCount));
         }
         if usize::from(hidden) != HIDDEN {
             return Err(err(Part::Shape, 1, Reason::ObserverHiddenCount));
         }
-        if usize::from(words) != WORDS {
+        if usize::from(words) != words_for(n) {
             return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
         }
-        check_hash(&structure_hash, source)?;
+        check_hash(&structure_hash, n, source)?;
         self.inputs = inputs;
         self.hidden = hidden;
         self.structure_hash = structure_hash;
@@ -444,11 +532,14 @@ impl Staging {
             return Err(err(Part::Shape, 0, Reason::ObserverNoUpload));
         }
         if start > self.received {
-            let (part, k) = part_of(usize::from(self.received));
+            let (part, k) = part_of(usize::from(self.received), usize::from(self.inputs));
             return Err(err(part, k, Reason::ObserverWordMissing));
         }
         let start = usize::from(start);
         let end = start.saturating_add(values.len());
+        if end > self.len() {
+            return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
+        }
         let Some(dst) = self.words.get_mut(start..end) else {
             return Err(err(Part::Shape, 2, Reason::ObserverWordCount));
         };
@@ -457,10 +548,15 @@ impl Staging {
         Ok(())
     }
 
+    /// Words of the block being uploaded.
+    fn len(&self) -> usize {
+        words_for(usize::from(self.inputs))
+    }
+
     /// The first word not yet received, if any.
     pub fn missing(&self) -> Option<usize> {
         let n = usize::from(self.received);
-        (n < WORDS).then_some(n)
+        (n < self.len()).then_some(n)
     }
 
     /// Every word there: the block validated, and the upload closed
@@ -470,10 +566,11 @@ impl Staging {
             return Err(err(Part::Shape, 0, Reason::ObserverNoUpload));
         }
         if let Some(i) = self.missing() {
-            let (part, k) = part_of(i);
+            let (part, k) = part_of(i, usize::from(self.inputs));
             return Err(err(part, k, Reason::ObserverWordMissing));
         }
         self.open = false;
-        validate(self.inputs, self.hidden, &self.structure_hash, &self.words, shift_max_m, source)
+        let words = self.words.get(..self.len()).unwrap_or(&[]);
+        validate(self.inputs, self.hidden, &self.structure_hash, words, shift_max_m, source)
     }
 }

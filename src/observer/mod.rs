@@ -2,7 +2,9 @@
 //! of the Gaussian RBF network that `host-sim train` fits.
 //!
 //! Inputs (in this order): motor speed (rad/s), nut speed (m/s), nut
-//! displacement (m), load force (N). Each is clamped to the range it was
+//! displacement (m), load force (N) and, for a model trained with it, the
+//! direction of travel (the sign of the last nonzero planned velocity,
+//! −1 … 1). Each is clamped to the range it was
 //! trained on and mapped to `[-1, 1]`; hidden unit `k` gives
 //! `φ_k = exp(−‖z − c_k‖² / 2σ_k²)`; the output is
 //! `output_offset + output_scale · (bias + Σ w_k φ_k + Σ a_j z_j)` in metres
@@ -14,6 +16,9 @@
 //! another shape than the code that calls it does not compile. That model is
 //! the default; a host may replace it without reflashing by uploading the
 //! same words as a [`block`], which the drive checks and keeps in flash.
+//! The drive runs a network with room for five inputs ([`NETWORK_INPUTS`]);
+//! a four-input model (the compiled one) runs in it with the fifth slot
+//! unused ([`lift`]), predicting bit for bit as on its own.
 
 pub mod block;
 #[rustfmt::skip]
@@ -101,6 +106,58 @@ pub struct Prediction {
     pub valid: bool,
 }
 
+/// The inputs the firmware's network has room for, in order: the paper's
+/// four state variables and the direction of travel (a dynamic input: the
+/// friction that bends the drive train at rest and at a move start turns
+/// with the direction of the last move, which speed, displacement and force
+/// at rest do not tell). Chosen over the planned acceleration by measuring
+/// both (docs/observer.md, "A fifth input").
+pub const NETWORK_INPUTS: usize = 5;
+
+/// Names of the network's inputs (dataset columns), in order. A model
+/// trained on the first four leaves the fifth unused.
+pub const NETWORK_INPUT_NAMES: [&str; NETWORK_INPUTS] =
+    ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n", "travel_direction"];
+
+/// The inputs the paper's static map uses (the first four).
+pub const STATIC_INPUTS: usize = 4;
+
+/// `m` in the network's five input slots. Slots past `IN` are unused:
+/// range `[0, 0]`, scale 0, no linear term, every centre on `−1` (where an
+/// unused input's normalised value sits), so `(z − c)² = 0` exactly and the
+/// prediction is bit for bit the one of `m` itself. Evaluated by the
+/// compiler for the compiled model (an index out of range fails the build).
+#[allow(clippy::indexing_slicing)]
+pub const fn lift<const IN: usize, const H: usize>(m: &RbfModel<IN, H>) -> RbfModel<NETWORK_INPUTS, H> {
+    let mut out = RbfModel {
+        input_min: [0.0; NETWORK_INPUTS],
+        input_max: [0.0; NETWORK_INPUTS],
+        input_scale: [0.0; NETWORK_INPUTS],
+        centres: [[-1.0; NETWORK_INPUTS]; H],
+        widths: m.widths,
+        log2_decay: m.log2_decay,
+        weights: m.weights,
+        linear: [0.0; NETWORK_INPUTS],
+        bias: m.bias,
+        output_scale: m.output_scale,
+        output_offset: m.output_offset,
+    };
+    let mut j = 0;
+    while j < IN && j < NETWORK_INPUTS {
+        out.input_min[j] = m.input_min[j];
+        out.input_max[j] = m.input_max[j];
+        out.input_scale[j] = m.input_scale[j];
+        out.linear[j] = m.linear[j];
+        let mut k = 0;
+        while k < H {
+            out.centres[k][j] = m.centres[k][j];
+            k = k.saturating_add(1);
+        }
+        j = j.saturating_add(1);
+    }
+    out
+}
+
 /// The observer's output for inputs `x` (clamped to the trained range).
 /// Non-finite results give 0; see [`evaluate`] for the flags.
 pub fn predict<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32; IN]) -> f32 {
@@ -109,11 +166,21 @@ pub fn predict<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32
 
 /// The observer's output with the clamping and validity flags.
 pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f32; IN]) -> Prediction {
-    let mut z = [0.0_f32; IN];
+    // Unused slots stay at −1; the linear term is summed as each input is
+    // normalised, in input order (one pass over the inputs, not two).
+    let mut z = [-1.0_f32; IN];
+    let mut acc = model.bias;
     let mut clamped = false;
     let mut valid = true;
     let ranges = model.input_min.iter().zip(model.input_max.iter()).zip(model.input_scale.iter());
-    for ((zi, &xi), ((&lo, &hi), &scale)) in z.iter_mut().zip(x.iter()).zip(ranges) {
+    for (((zi, &xi), ((&lo, &hi), &scale)), &a) in z.iter_mut().zip(x.iter()).zip(ranges).zip(model.linear.iter()) {
+        if scale == 0.0 {
+            // An unused input (a four-input model run by the five-input
+            // network): it carries nothing, whatever the drive feeds it;
+            // `a · (−1)`, as its normalised value −1 gives.
+            acc -= a;
+            continue;
+        }
         let xc = if xi.is_nan() {
             valid = false;
             lo
@@ -127,10 +194,7 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
             xi
         };
         *zi = (xc - lo) * scale - 1.0;
-    }
-    let mut acc = model.bias;
-    for (&a, &zi) in model.linear.iter().zip(z.iter()) {
-        acc += a * zi;
+        acc += a * *zi;
     }
     let units = model.centres.iter().zip(model.log2_decay.iter()).zip(model.weights.iter());
     for ((c, &decay), &w) in units {
@@ -146,7 +210,8 @@ pub fn evaluate<const IN: usize, const H: usize>(model: &RbfModel<IN, H>, x: [f3
 
 /// `‖z − c‖²`, summed in input order. Written over chunks of four so the
 /// optimiser (at `opt-level = "s"`, which does not unroll) emits the four
-/// inputs straight-line; the remainder loop is empty for the 4-input model.
+/// inputs straight-line; the remainder is the fifth input of the drive's
+/// network (measured: a chunk of five instead costs the same).
 #[inline(always)]
 fn distance2<const IN: usize>(c: &[f32; IN], z: &[f32; IN]) -> f32 {
     let (c4, c_rest) = c.as_chunks::<4>();

@@ -6,7 +6,7 @@
 //! | 4 | magic `CSP3` |
 //! | 8 | `PARAMS_SCHEMA_HASH` (the layout of `ControlParams`) |
 //! | 2 | parameter body length, little-endian |
-//! | 2 | observer words: 0 (the compiled model) or `observer::block::WORDS` |
+//! | 2 | observer words: 0 (the compiled model) or `observer::block::WORDS` (the five-slot layout, whatever the block's input count) |
 //! | n | the leaves in path order, 4 bytes each, little-endian (`params::leaves`) |
 //! | 8 | observer structure hash, of the parameters' force input (only with observer words) |
 //! | 4·w | the observer block's words, `f32` little-endian (only with observer words) |
@@ -22,7 +22,9 @@
 //! is (`observer::block::validate`, against the record's own
 //! `faults.observer_shift_max_m`); a section this firmware's network cannot
 //! run (another structure hash after a firmware update) leaves the
-//! parameters usable and the compiled model running, and says so.
+//! parameters usable and the compiled model running, and says so. A
+//! section of the four-input layout (75 words, written before the network
+//! had a fifth input slot) is such a section: upload the weights again.
 //!
 //! Older versions: a `CSP2` record (the same without the observer count and
 //! section) is still read, with the compiled model; a `CSP1` record
@@ -129,7 +131,8 @@ pub fn encode<'a>(p: &ControlParams, observer: Option<&Weights>, buf: &'a mut [u
         let at = HEADER.saturating_add(BODY);
         let sec = buf.get_mut(at..end).ok_or(RecordError::TooLarge)?;
         let (hash, words) = sec.split_at_mut(8);
-        hash.copy_from_slice(&block::structure_hash(ForceSource::selected(p.compensation.force_from_estimate)));
+        let source = ForceSource::selected(p.compensation.force_from_estimate);
+        hash.copy_from_slice(&block::structure_hash_for(block::inputs_of(m), source));
         for (slot, w) in words.chunks_exact_mut(WORD).zip(block::to_words(m).iter()) {
             slot.copy_from_slice(&w.to_le_bytes());
         }
@@ -197,6 +200,7 @@ pub fn decode_record(record: &[u8]) -> Result<Decoded, RecordError> {
     let obs_bytes = match obs_words {
         0 => 0,
         WORDS => OBSERVER_BYTES,
+        block::WORDS_STATIC => 8usize.saturating_add(block::WORDS_STATIC.saturating_mul(WORD)),
         _ => return Err(RecordError::ObserverLength),
     };
     let rest = covered.get(header..).ok_or(RecordError::TooShort)?;
@@ -226,10 +230,14 @@ pub fn decode_record(record: &[u8]) -> Result<Decoded, RecordError> {
             x.copy_from_slice(b);
             *w = f32::from_le_bytes(x);
         }
-        let inputs = crate::observer::model::INPUTS as u16;
-        let hidden = crate::observer::model::HIDDEN as u16;
         let source = ForceSource::selected(params.get().compensation.force_from_estimate);
-        let weights = block::validate(inputs, hidden, &h, &words, params.get().faults.observer_shift_max_m, source);
+        let weights = if obs_words == WORDS {
+            block::validate_stored(&h, &words, params.get().faults.observer_shift_max_m, source)
+        } else {
+            // The four-input layout cannot run in place in the five-slot
+            // network: the parameters apply, the compiled model runs.
+            Err(BlockError { part: block::Part::Shape, index: 2, reason: crate::reason::Reason::ObserverWordCount })
+        };
         ObserverSection { weights, words_offset: header.saturating_add(BODY).saturating_add(8) }
     });
     Ok(Decoded { params, observer, version })

@@ -22,10 +22,12 @@ use crc::{Crc, NoTable, CRC_32_ISO_HDLC};
 
 const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 
-/// CRC-32 of a model's block words (`f32` little-endian, block order).
+/// CRC-32 of a model's block words (`f32` little-endian, block order), as
+/// the block of its own input count: what the host uploaded.
 pub fn words_crc(m: &Weights) -> u32 {
     let mut d = CRC.digest();
-    for w in block::to_words(m) {
+    let (words, n) = block::to_block_words(m, block::inputs_of(m));
+    for w in words.iter().take(n) {
         d.update(&w.to_le_bytes());
     }
     d.finalize()
@@ -44,14 +46,16 @@ pub fn force_source(p: &ControlParams) -> block::ForceSource {
 }
 
 /// The status reply for the weights `m` on a drive whose force input is
-/// `source` (the structure hash an upload must carry).
+/// `source`: their input count, word count and CRC, and the structure hash
+/// of a block of that input count on that force input.
 pub fn status(m: &Weights, source: block::ForceSource) -> ObserverStatus {
+    let inputs = block::inputs_of(m);
     ObserverStatus {
         source: if is_compiled(m) { ObserverSource::Compiled } else { ObserverSource::Uploaded },
-        inputs: model::INPUTS as u16,
+        inputs: inputs as u16,
         hidden: model::HIDDEN as u16,
-        words: block::WORDS as u16,
-        structure_hash: block::structure_hash(source),
+        words: block::words_for(inputs) as u16,
+        structure_hash: block::structure_hash_for(inputs, source),
         words_crc: words_crc(m),
     }
 }

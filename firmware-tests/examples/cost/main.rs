@@ -42,10 +42,9 @@ use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, Signal, 
 use servo_core::pi::Pi;
 use servo_core::{ControlParams, Controller, Mode, PwmCommand, SensorSample};
 
-/// Whether `Controller::step` runs the error observer in its position
-/// periods (it does, with compensation on, which the closed-loop script
-/// switches on). Were it `false`, the "position with observer" figures would
-/// add one measured `observer::evaluate` to the measured position period.
+/// `Controller::step` runs the error observer in its position periods
+/// (with compensation on, which the closed-loop script switches on), so the
+/// position period's figure includes it.
 const OBSERVER_IN_STEP: bool = true;
 
 mod pieces;
@@ -107,7 +106,7 @@ fn main() -> ! {
     }
 
     let p = ControlParams::DEFAULT;
-    let mut rows: [Option<Row>; 25] = Default::default();
+    let mut rows: [Option<Row>; 28] = Default::default();
     let mut n_rows = 0usize;
     let mut push = |r: Row| {
         if let Some(slot) = rows.get_mut(n_rows) {
@@ -117,10 +116,14 @@ fn main() -> ! {
     };
 
     // ---- Controller::step in closed loop ---------------------------------
-    let (cur, spd, pos, off, faults_seen) = closed_loop(&m, p, false);
+    let (cur, spd, pos, off, faults_seen) = closed_loop(&m, p, false, None);
     // The same run with a capture recording four signals every period
     // (re-armed whenever it is done): what the scope costs while it records.
-    let (cap_cur, cap_spd, cap_pos, _, _) = closed_loop(&m, p, true);
+    let (cap_cur, cap_spd, cap_pos, _, _) = closed_loop(&m, p, true, None);
+    // The same run with an uploaded five-input model (the direction of
+    // travel used): the longest forward pass the drive can be given.
+    let (_, five_spd, five_pos, _, five_faults) = closed_loop(&m, p, false, Some(&golden::FIVE_INPUT_MODEL));
+    let faults_seen = faults_seen || five_faults;
     push(row(
         &m,
         "step_current",
@@ -138,6 +141,12 @@ fn main() -> ! {
         "step_position",
         "Controller::step, position + speed + current + telemetry (every 20th)",
         &pos,
+    ));
+    push(row(
+        &m,
+        "step_position_five_input",
+        "Controller::step, position + speed + current + telemetry, an uploaded five-input observer model",
+        &five_pos,
     ));
     push(row(
         &m,
@@ -203,6 +212,27 @@ fn main() -> ! {
         "observer_evaluate",
         "observer::evaluate (the generated RBF model, 4 inputs)",
         &obs_stats,
+    ));
+    let net_input = |i: u32| {
+        let [a, b, c, d] = obs_input(i);
+        [a, b, c, d, if i % 2 == 0 { 1.0 } else { -1.0 }]
+    };
+    let net_stats = each(&m, 400, net_input, |x| {
+        black_box(observe_network(x));
+    });
+    push(row(
+        &m,
+        "observer_network",
+        "observer::evaluate in the drive's five-slot network (the compiled model, fifth input unused), as the position loop runs it",
+        &net_stats,
+    ));
+    push(row(
+        &m,
+        "observer_network_five_input",
+        "observer::evaluate in the five-slot network, a five-input model (the direction of travel used)",
+        &each(&m, 400, net_input, |x| {
+            black_box(observe_five_input(x));
+        }),
     ));
 
     // ---- pieces -----------------------------------------------------------
@@ -434,19 +464,9 @@ fn main() -> ! {
     let mean = |st: &Stats| st.insns(&m).0;
     let speed_increment = mean(&spd) - mean(&cur);
     let position_increment = mean(&pos) - mean(&spd);
-    let observer_mean = obs_stats.insns(&m).0;
-    // Until Controller::step runs the observer itself, the position period
-    // with the observer is the measured period plus one measured evaluation.
-    let position_with_observer = if OBSERVER_IN_STEP {
-        mean(&pos)
-    } else {
-        mean(&pos) + observer_mean
-    };
-    let position_increment_with_observer = if OBSERVER_IN_STEP {
-        position_increment
-    } else {
-        position_increment + observer_mean
-    };
+    let position_with_observer = mean(&pos);
+    let position_increment_with_observer = position_increment;
+    let position_increment_five = mean(&five_pos) - mean(&five_spd);
 
     // ---- print --------------------------------------------------------------
     hprintln!(
@@ -477,14 +497,10 @@ fn main() -> ! {
         position_increment
     );
     hprintln!(
-        "position period with the observer{}: {:>8.1}  (position loop alone with it: {:.1})",
-        if OBSERVER_IN_STEP {
-            ""
-        } else {
-            " (period + one evaluation)"
-        },
+        "position period with the observer: {:>8.1}  (position loop alone with it: {:.1}; with a five-input model: {:.1})",
         position_with_observer,
-        position_increment_with_observer
+        position_increment_with_observer,
+        position_increment_five
     );
     hprintln!("longest PWM period with a bulk request served before the step (instructions; current / speed / position periods):");
     for (i, (_, name)) in ops.iter().enumerate() {
@@ -541,8 +557,16 @@ fn main() -> ! {
         position_increment
     );
     hprintln!(
-        "JSON     \"position_loop_alone_with_observer\": {:.1}",
+        "JSON     \"position_loop_alone_with_observer\": {:.1},",
         position_increment_with_observer
+    );
+    hprintln!("JSON     \"position_five_input\": {:.1},", mean(&five_pos));
+    hprintln!("JSON     \"position_max_five_input\": {:.0},", five_pos.insns(&m).2);
+    hprintln!("JSON     \"position_capturing_max\": {:.0},", cap_pos.insns(&m).2);
+    hprintln!("JSON     \"speed_capturing_max\": {:.0},", cap_spd.insns(&m).2);
+    hprintln!(
+        "JSON     \"position_loop_alone_five_input\": {:.1}",
+        position_increment_five
     );
     hprintln!("JSON   }},");
     hprintln!("JSON   \"insns\": {{");

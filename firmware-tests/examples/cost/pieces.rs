@@ -87,6 +87,19 @@ pub(crate) fn observe(x: [f32; 4]) -> f32 {
     observer::evaluate(&observer::model::MODEL, x).value_m
 }
 
+/// The forward pass the drive runs: the five-slot network, here with the
+/// compiled model (its fifth slot unused), behind a call like the above.
+#[inline(never)]
+pub(crate) fn observe_network(x: [f32; observer::NETWORK_INPUTS]) -> f32 {
+    observer::evaluate(&observer::block::COMPILED, x).value_m
+}
+
+/// The same network with a five-input model: every slot in use.
+#[inline(never)]
+pub(crate) fn observe_five_input(x: [f32; observer::NETWORK_INPUTS]) -> f32 {
+    observer::evaluate(&golden::FIVE_INPUT_MODEL, x).value_m
+}
+
 /// The core's square root (`vsqrt.f32` on this target), behind a call so it
 /// is counted like the libm one next to it.
 #[inline(never)]

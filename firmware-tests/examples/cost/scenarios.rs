@@ -18,8 +18,14 @@ fn bench_capture() -> CaptureConfig {
 
 /// `Controller::step` over the golden closed-loop script, measured per
 /// period kind: current, speed, position, bridge off; and whether a fault
-/// was seen. With `capture`, a four-signal capture records throughout.
-pub(crate) fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats, Stats, Stats, Stats, bool) {
+/// was seen. With `capture`, a four-signal capture records throughout; with
+/// `weights`, the observer runs them instead of the compiled model.
+pub(crate) fn closed_loop(
+    m: &Meter,
+    p: ControlParams,
+    capture: bool,
+    weights: Option<&'static servo_core::observer::block::Weights>,
+) -> (Stats, Stats, Stats, Stats, bool) {
     let (mut cur, mut spd, mut pos, mut off) =
         (Stats::new(), Stats::new(), Stats::new(), Stats::new());
     // As the golden closed loop: the rigid plant carries no load and has
@@ -28,6 +34,9 @@ pub(crate) fn closed_loop(m: &Meter, p: ControlParams, capture: bool) -> (Stats,
     bench.startup.expected_load_force_n = 0.0;
     bench.brake.fitted = false;
     let mut c = Controller::new(bench);
+    if let Some(weights) = weights {
+        let _ = c.command(servo_core::Command::SetObserverWeights { weights });
+    }
     static STORE: CaptureStore = CaptureStore::new();
     let cfg = bench_capture();
     if capture {

@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use golden::{header, ClosedLoop, Column, Family, Foc, Observer, Table, Trajectory};
+use golden::{header, ClosedLoop, Column, Family, Foc, Observer, Observer5, Table, Trajectory};
 
 fn encode<F: Family>() -> Vec<u8> {
     let mut words: Vec<u32> = Vec::new();
@@ -190,6 +190,7 @@ fn main() -> ExitCode {
         run::<Trajectory>(&dir, check),
         run::<ClosedLoop>(&dir, check),
         run::<Observer>(&dir, check),
+        run::<Observer5>(&dir, check),
     ];
     let mut ok = true;
     for r in results {

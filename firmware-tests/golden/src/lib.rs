@@ -10,8 +10,10 @@
 //!
 //! Families: one FOC current-loop step over a sweep of angles and currents
 //! ([`Foc`]), S-curve trajectory samples ([`Trajectory`]), the closed-loop
-//! duty sequence of a recorded sensor sequence ([`ClosedLoop`]), and the
-//! error observer's outputs ([`Observer`]).
+//! duty sequence of a recorded sensor sequence ([`ClosedLoop`]), the
+//! error observer's outputs ([`Observer`]), and the drive's five-slot
+//! observer network with a five-input model compiled in and uploaded
+//! ([`Observer5`]).
 //!
 //! Why the two builds can agree bit for bit: the core is `f32` arithmetic,
 //! which both targets do in IEEE single precision with round-to-nearest
@@ -24,6 +26,7 @@
 //! targets differently — which is what these vectors are for.
 #![no_std]
 
+pub mod observer5;
 pub mod plant;
 pub mod table;
 
@@ -35,6 +38,7 @@ use servo_core::motion::ScurveMove;
 use servo_core::observer;
 use servo_core::{Command, ControlParams, Controller, PwmCommand, SensorSample};
 
+pub use observer5::{Observer5, FIVE_INPUT_MODEL};
 pub use table::{agrees, header, ulps, Column, Table, Tol};
 
 use plant::{Noise, RigidPlant};

@@ -14,7 +14,7 @@ use crate::trainer::dataset::ModelKind;
 use crate::trainer::network::TrainedModel;
 use anyhow::{anyhow, bail, Context, Result};
 use servo_core::observer::block::{self, ForceSource, Weights, CHUNK_WORDS, WORDS};
-use servo_core::observer::model::{HIDDEN, INPUTS};
+use servo_core::observer::model::HIDDEN;
 use servo_core::protocol::observer::words_crc;
 use servo_core::protocol::{ObserverRequest, ObserverSource, ObserverStatus, Reply, Request};
 use std::path::Path;
@@ -93,8 +93,11 @@ pub fn upload_words(c: &mut Client, inputs: u16, hidden: u16, structure_hash: [u
 /// runs exactly these words. A drive whose force input is the other one
 /// refuses it, naming both.
 pub fn upload(c: &mut Client, w: &Weights, source: ForceSource) -> Result<ObserverStatus> {
-    let words = block::to_words(w);
-    let s = upload_words(c, INPUTS as u16, HIDDEN as u16, block::structure_hash(source), &words)?;
+    // As a block of the model's own input count (four: the paper's map;
+    // five: with the direction of travel).
+    let inputs = block::inputs_of(w);
+    let (words, n) = block::to_block_words(w, inputs);
+    let s = upload_words(c, inputs as u16, HIDDEN as u16, block::structure_hash_for(inputs, source), &words[..n])?;
     let want = words_crc(w);
     if s.source != ObserverSource::Uploaded || s.words_crc != want {
         bail!(

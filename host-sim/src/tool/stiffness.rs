@@ -195,7 +195,8 @@ pub fn run(c: &mut Client, design: &RigConfig, o: &ProbeOptions, upload: bool, o
     let cylinder = probe(c, o, Some(out)).context("the probe on the drive")?;
     let id = against_design(&cylinder, design, x0, 1, o)?;
     let w = scaled_block(&id);
-    let words = servo_core::observer::block::to_words(&w);
+    let (words, n) = servo_core::observer::block::to_block_words(&w, servo_core::observer::block::inputs_of(&w));
+    let words = &words[..n];
     let mut summary = serde_json::json!({
         "probe": o,
         "position_m": x0,

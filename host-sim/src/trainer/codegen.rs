@@ -1,5 +1,7 @@
 //! Generated Rust source for the firmware: the trained weights as `const f32`
-//! arrays of a `servo_core::observer::RbfModel<INPUTS, HIDDEN>` plus metadata.
+//! arrays of a `servo_core::observer::RbfModel<INPUTS, HIDDEN>` plus metadata,
+//! `INPUTS` the model's own (4, or 5 with the direction of travel); the
+//! firmware runs either in its five-slot network (`observer::lift`).
 //!
 //! Every `f32` is printed with Rust's shortest round-trip formatting, so the
 //! compiled constant is exactly `value as f32`, the same value
@@ -38,8 +40,10 @@ fn to_f32(v: f64, what: &str) -> Result<f32> {
     Ok(x)
 }
 
-/// The core's model, built in memory with the same `f32` rounding as the
-/// generated source. Fails if `H` is not the model's hidden size.
+/// The core's model in the firmware's five input slots (an unused slot as
+/// `servo_core::observer::lift` leaves it), built in memory with the same
+/// `f32` rounding as the generated source. Fails if `H` is not the model's
+/// hidden size.
 pub fn to_core_model<const H: usize>(m: &TrainedModel) -> Result<RbfModel<N_INPUTS, H>> {
     if m.hidden() != H {
         bail!("model has {} hidden units, not {}", m.hidden(), H);
@@ -59,7 +63,7 @@ pub fn to_core_model<const H: usize>(m: &TrainedModel) -> Result<RbfModel<N_INPU
         output_offset: to_f32(m.norm.output_offset, "output offset")?,
     };
     let lin = m.linear_coefficients();
-    for j in 0..N_INPUTS {
+    for j in 0..m.inputs() {
         out.linear[j] = to_f32(lin[j], "linear coefficient")?;
         out.input_min[j] = to_f32(m.norm.input_min[j], "input min")?;
         out.input_max[j] = to_f32(m.norm.input_max[j], "input max")?;
@@ -108,7 +112,7 @@ pub fn generate(m: &TrainedModel, meta: &CodegenMeta) -> Result<String> {
         w,
         "//! - model: {} ({} inputs, {} Gaussian units{})",
         m.kind.name(),
-        N_INPUTS,
+        m.inputs(),
         m.hidden(),
         if m.rbf.linear { ", linear term" } else { "" }
     )?;
@@ -124,11 +128,12 @@ pub fn generate(m: &TrainedModel, meta: &CodegenMeta) -> Result<String> {
     writeln!(w, "use super::{{ModelKind, ModelMeta, RbfModel}};")?;
     writeln!(w)?;
     writeln!(w, "/// Network inputs.")?;
-    writeln!(w, "pub const INPUTS: usize = {N_INPUTS};")?;
+    let n = m.inputs();
+    writeln!(w, "pub const INPUTS: usize = {n};")?;
     writeln!(w, "/// Hidden (Gaussian) units.")?;
     writeln!(w, "pub const HIDDEN: usize = {};", m.hidden())?;
     writeln!(w, "/// Dataset columns of the inputs, in the order [`predict`](super::predict) takes them.")?;
-    writeln!(w, "pub const INPUT_NAMES: [&str; INPUTS] = {:?};", INPUT_COLUMNS)?;
+    writeln!(w, "pub const INPUT_NAMES: [&str; INPUTS] = {:?};", &INPUT_COLUMNS[..n])?;
     writeln!(w)?;
     writeln!(w, "pub const META: ModelMeta = ModelMeta {{")?;
     writeln!(w, "    kind: {kind},")?;
@@ -143,19 +148,19 @@ pub fn generate(m: &TrainedModel, meta: &CodegenMeta) -> Result<String> {
     writeln!(w, "}};")?;
     writeln!(w)?;
     writeln!(w, "pub const MODEL: RbfModel<INPUTS, HIDDEN> = RbfModel {{")?;
-    writeln!(w, "    input_min: {},", row(&m.norm.input_min, "input min")?)?;
-    writeln!(w, "    input_max: {},", row(&m.norm.input_max, "input max")?)?;
-    writeln!(w, "    input_scale: {},", row(&m.norm.input_scale(), "input scale")?)?;
+    writeln!(w, "    input_min: {},", row(&m.norm.input_min[..n], "input min")?)?;
+    writeln!(w, "    input_max: {},", row(&m.norm.input_max[..n], "input max")?)?;
+    writeln!(w, "    input_scale: {},", row(&m.norm.input_scale()[..n], "input scale")?)?;
     writeln!(w, "    centres: [")?;
     for c in m.centres() {
-        writeln!(w, "        {},", row(&c, "centre")?)?;
+        writeln!(w, "        {},", row(&c[..n], "centre")?)?;
     }
     writeln!(w, "    ],")?;
     writeln!(w, "    widths: {},", row(&m.widths(), "width")?)?;
     let decay = m.widths().iter().map(|&sig| Ok(format!("{:?}", log2_decay(to_f32(sig, "width")?)))).collect::<Result<Vec<_>>>()?;
     writeln!(w, "    log2_decay: [{}],", decay.join(", "))?;
     writeln!(w, "    weights: {},", row(m.weights(), "weight")?)?;
-    writeln!(w, "    linear: {},", row(&m.linear_coefficients(), "linear coefficient")?)?;
+    writeln!(w, "    linear: {},", row(&m.linear_coefficients()[..n], "linear coefficient")?)?;
     writeln!(w, "    bias: {},", lit(m.bias(), "bias")?)?;
     writeln!(w, "    output_scale: {},", lit(m.norm.output_scale, "output scale")?)?;
     writeln!(w, "    output_offset: {},", lit(m.norm.output_offset, "output offset")?)?;

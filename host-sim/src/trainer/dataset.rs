@@ -12,7 +12,10 @@
 //! run on: `load_force_n` for the load cell, `load_force_estimate_n` for
 //! the drive's current-based estimate (never both; every file alike).
 //!
-//! Optional: `terminal_length_m` and `motor_side_position_m` (the length
+//! Optional: `travel_direction` (the fifth input: the sign of the last
+//! nonzero planned velocity, −1 … 1; every file alike: with it the network
+//! has five inputs, without it the paper's four), `terminal_length_m` and
+//! `motor_side_position_m` (the length
 //! model's target; without `terminal_error_m` the error is their
 //! difference), `tilt_swing_deg` and `payload_scale` (the simulator's
 //! labels, reported only). `host-sim dataset-from-logs` writes such a file
@@ -34,12 +37,19 @@ use std::path::{Path, PathBuf};
 /// ChaCha stream of the split's shuffles (other streams: initialisation).
 pub const STREAM_SPLIT: u64 = 1;
 
-/// Number of network inputs (the paper's four state variables).
-pub const N_INPUTS: usize = 4;
+/// Input slots of the network (the firmware's): the paper's four state
+/// variables and the direction of travel. A dataset, and the network
+/// trained on it, uses the first [`STATIC_INPUTS`] or all of them.
+pub const N_INPUTS: usize = servo_core::observer::NETWORK_INPUTS;
+
+/// The paper's four inputs: a dataset without the fifth column.
+pub const STATIC_INPUTS: usize = servo_core::observer::STATIC_INPUTS;
 
 /// The input columns, in the order the network (and the firmware) takes them.
-pub const INPUT_COLUMNS: [&str; N_INPUTS] =
-    ["motor_speed_rad_s", "nut_speed_m_s", "nut_displacement_m", "load_force_n"];
+pub const INPUT_COLUMNS: [&str; N_INPUTS] = servo_core::observer::NETWORK_INPUT_NAMES;
+
+/// The fifth input's column.
+pub const TRAVEL_COLUMN: &str = "travel_direction";
 
 /// The columns a dataset file must have (the target, `terminal_error_m`,
 /// may instead come from `terminal_length_m − motor_side_position_m`).
@@ -139,7 +149,7 @@ pub struct Run {
     pub source: PathBuf,
     pub first_line: u64,
     pub time_s: Vec<f64>,
-    /// Inputs in [`INPUT_COLUMNS`] order.
+    /// Inputs in [`INPUT_COLUMNS`] order (an unused slot holds 0).
     pub inputs: Vec<[f64; N_INPUTS]>,
     /// NaN when the file has neither the length nor the motor side.
     pub terminal_length_m: Vec<f64>,
@@ -173,6 +183,8 @@ pub struct Dataset {
     pub runs: Vec<Run>,
     /// The force the observer read while the data were logged.
     pub force_source: ForceSource,
+    /// Inputs the data carry: 4, or 5 with the direction of travel.
+    pub inputs: usize,
 }
 
 /// Limits a dataset must meet.
@@ -209,8 +221,20 @@ impl Dataset {
         };
         let mut runs: BTreeMap<String, Run> = BTreeMap::new();
         let mut force: Option<(ForceSource, &PathBuf)> = None;
+        let mut inputs: Option<(usize, &PathBuf)> = None;
         for f in &files {
-            let source = read_file(f, &mut runs)?;
+            let (source, n) = read_file(f, &mut runs)?;
+            match inputs {
+                Some((m, first)) if m != n => bail!(
+                    "{} line 1: {} '{TRAVEL_COLUMN}' column, but {} {}: every file of a dataset has the same inputs",
+                    f.display(),
+                    if n == N_INPUTS { "a" } else { "no" },
+                    first.display(),
+                    if m == N_INPUTS { "has one" } else { "has none" }
+                ),
+                Some(_) => {}
+                None => inputs = Some((n, f)),
+            }
             match force {
                 Some((s, first)) if s != source => bail!(
                     "{} line 1: force column '{}', but {} has '{}': data logged on the load cell and on the estimate train different weights",
@@ -241,14 +265,21 @@ impl Dataset {
             }
         }
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string());
-        Ok(Dataset { name, path: path.to_path_buf(), runs, force_source })
+        let inputs = inputs.map_or(STATIC_INPUTS, |(n, _)| n);
+        Ok(Dataset { name, path: path.to_path_buf(), runs, force_source, inputs })
     }
 
     /// Builds a dataset from runs made in memory (synthetic data, tests),
-    /// their force read from the load cell (see [`Dataset::with_force_source`]).
+    /// their force read from the load cell (see [`Dataset::with_force_source`])
+    /// and the paper's four inputs (see [`Dataset::with_inputs`]).
     pub fn from_runs(name: &str, mut runs: Vec<Run>) -> Dataset {
         runs.sort_by(|a, b| a.id.cmp(&b.id));
-        Dataset { name: name.to_string(), path: PathBuf::from(name), runs, force_source: ForceSource::LoadCell }
+        Dataset { name: name.to_string(), path: PathBuf::from(name), runs, force_source: ForceSource::LoadCell, inputs: STATIC_INPUTS }
+    }
+
+    /// The same runs, with their first `inputs` input slots used (4 or 5).
+    pub fn with_inputs(self, inputs: usize) -> Dataset {
+        Dataset { inputs: inputs.clamp(STATIC_INPUTS, N_INPUTS), ..self }
     }
 
     /// The same runs, logged with the observer reading `source`.
@@ -261,11 +292,16 @@ impl Dataset {
         // Unknown optional values are left empty.
         let label = |v: f64| if v.is_nan() { String::new() } else { format!("{v:e}") };
         let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
-        w.write_record(ALL_COLUMNS.map(|c| if c == "load_force_n" { force_column(self.force_source) } else { c }))?;
+        let mut header: Vec<&str> = ALL_COLUMNS.map(|c| if c == "load_force_n" { force_column(self.force_source) } else { c }).to_vec();
+        let travel = self.inputs == N_INPUTS;
+        if travel {
+            header.push(TRAVEL_COLUMN);
+        }
+        w.write_record(&header)?;
         for r in &self.runs {
             for i in 0..r.len() {
                 let x = r.inputs[i];
-                w.write_record([
+                let mut row = vec![
                     r.id.clone(),
                     r.direction.name().to_string(),
                     label(r.tilt_swing_deg),
@@ -278,7 +314,11 @@ impl Dataset {
                     label(r.terminal_length_m[i]),
                     label(r.motor_side_position_m[i]),
                     format!("{:e}", r.terminal_error_m[i]),
-                ])?;
+                ];
+                if travel {
+                    row.push(format!("{}", x[4]));
+                }
+                w.write_record(&row)?;
             }
         }
         w.flush().with_context(|| format!("writing {}", path.display()))?;
@@ -290,8 +330,9 @@ impl Dataset {
     }
 }
 
-/// Reads one file's runs into `runs`; the force source its force column names.
-fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<ForceSource> {
+/// Reads one file's runs into `runs`; the force source its force column
+/// names, and the inputs it carries (5 with a `travel_direction` column).
+fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<(ForceSource, usize)> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
@@ -316,6 +357,7 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<ForceSourc
     }
     let [c_run, c_dir, c_time, c_w, c_v, c_x, c_f] = col;
     let (c_tilt, c_pay) = (find("tilt_swing_deg"), find("payload_scale"));
+    let c_travel = find(TRAVEL_COLUMN);
     let (c_len, c_motor, c_err) = (find("terminal_length_m"), find("motor_side_position_m"), find("terminal_error_m"));
     if c_err.is_none() && (c_len.is_none() || c_motor.is_none()) {
         return Err(missing("terminal_error_m")
@@ -358,7 +400,17 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<ForceSourc
         let direction = Direction::parse(dir_s)
             .ok_or_else(|| anyhow!("{}: direction '{}' is neither Elongation nor Contraction", at(), dir_s))?;
         let (tilt, pay, t) = (opt(c_tilt)?, opt(c_pay)?, num(c_time)?);
-        let x = [num(c_w)?, num(c_v)?, num(c_x)?, num(c_f)?];
+        let travel = match c_travel {
+            Some(c) => {
+                let d = num(c)?;
+                if !(-1.0..=1.0).contains(&d) {
+                    bail!("{}: field '{TRAVEL_COLUMN}' = {d} is outside [-1, 1] (the sign of the planned velocity)", at());
+                }
+                d
+            }
+            None => 0.0,
+        };
+        let x = [num(c_w)?, num(c_v)?, num(c_x)?, num(c_f)?, travel];
         let (len, motor) = (opt(c_len)?, opt(c_motor)?);
         let err = match c_err {
             Some(c) => num(c)?,
@@ -396,7 +448,7 @@ fn read_file(path: &Path, runs: &mut BTreeMap<String, Run>) -> Result<ForceSourc
     if data_row == 0 {
         bail!("{}: no data row after the header", path.display());
     }
-    Ok(source)
+    Ok((source, if c_travel.is_some() { N_INPUTS } else { STATIC_INPUTS }))
 }
 
 /// How runs are split into training, validation and held-out test runs.
@@ -518,7 +570,12 @@ impl Samples {
             let r = &ds.runs[ri];
             let t = r.target(kind);
             for i in (0..r.len()).step_by(stride) {
-                s.inputs.push(r.inputs[i]);
+                // Slots the dataset does not use carry nothing.
+                let mut x = r.inputs[i];
+                for v in x.iter_mut().skip(ds.inputs) {
+                    *v = 0.0;
+                }
+                s.inputs.push(x);
                 s.target.push(t[i]);
                 s.length_m.push(r.terminal_length_m[i]);
                 s.error_m.push(r.terminal_error_m[i]);

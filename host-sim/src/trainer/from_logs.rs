@@ -9,6 +9,12 @@
 //! - `speed_rad_s` (or `motor_speed_rad_s`): the motor speed;
 //! - `terminal_position_m`: the linear scale at the rod (the target comes
 //!   from it: terminal error = terminal − motor side);
+//! - for the fifth input, the direction of travel: `travel_direction`
+//!   (the sign of the last nonzero planned velocity), or
+//!   `position_reference_m` (the planned position, in the telemetry) from
+//!   which it is taken, the sign of each change held while the plan rests.
+//!   Without either the dataset has the paper's four inputs;
+//!   `--static-inputs` asks for those alone;
 //! - `load_force_n` (a load cell) or `load_force_estimate_n` (the drive's
 //!   telemetry: the observer's force input, the load cell or the estimate
 //!   as `control.compensation.force_from_estimate` selected). The weights
@@ -52,6 +58,9 @@ pub struct LogOptions {
     /// The force the drive's observer read while logging (`None`: known
     /// only from a `load_force_n` column).
     pub force_source: Option<ForceSource>,
+    /// The paper's four inputs only, even where the logs give the
+    /// direction of travel.
+    pub static_inputs: bool,
 }
 
 impl LogOptions {
@@ -68,6 +77,7 @@ impl LogOptions {
             min_runs_per_direction: 4,
             min_samples_per_run: 20,
             force_source: None,
+            static_inputs: false,
         }
     }
 }
@@ -97,6 +107,11 @@ pub struct LogSummary {
     /// Which column gave the load force.
     pub load_force_column: String,
     pub terminal_error_max_abs_m: f64,
+    /// Inputs of the dataset: 5 with the direction of travel, else 4.
+    pub inputs: usize,
+    /// Where the direction of travel came from, per file
+    /// (`travel_direction`, `position_reference_m` or none).
+    pub travel_direction_from: Vec<String>,
 }
 
 /// The first of `names` the header has.
@@ -119,6 +134,19 @@ struct Row {
     speed_rad_s: f64,
     terminal_m: f64,
     force_n: f64,
+    /// The direction of travel, if the log gives it.
+    travel: Option<f64>,
+}
+
+/// The sign of `d`, or `held` where it is 0.
+fn sign_or(d: f64, held: f64) -> f64 {
+    if d > 0.0 {
+        1.0
+    } else if d < 0.0 {
+        -1.0
+    } else {
+        held
+    }
 }
 
 fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)> {
@@ -130,6 +158,16 @@ fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)>
     let c_s = column(&header, &["terminal_position_m"], path, "the linear scale at the rod: the target comes from it")?;
     let c_f = column(&header, &["load_force_n", "load_force_estimate_n"], path, "a load cell, or the drive's estimate")?;
     let c_mode = header.iter().position(|h| h == "mode");
+    let c_travel = header.iter().position(|h| h == super::dataset::TRAVEL_COLUMN);
+    let c_ref = header.iter().position(|h| h == "position_reference_m");
+    summary.travel_direction_from.push(match (c_travel, c_ref) {
+        (Some(_), _) => super::dataset::TRAVEL_COLUMN.into(),
+        (None, Some(_)) => "position_reference_m".into(),
+        (None, None) => "none".into(),
+    });
+    // The held sign of the planned position's changes: 0 until the plan
+    // first moves, as on the drive.
+    let (mut last_ref, mut held) = (None::<f64>, 0.0);
     let force_name = header.get(c_f).unwrap_or("?").to_string();
     let mut rows = Vec::new();
     let mut rec = csv::StringRecord::new();
@@ -155,7 +193,23 @@ fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)>
                 continue;
             }
         }
-        let row = Row { line, t: num(c_t)?, motor_m: num(c_x)?, speed_rad_s: num(c_w)?, terminal_m: num(c_s)?, force_n: num(c_f)? };
+        let travel = match (c_travel, c_ref) {
+            (Some(c), _) => {
+                let d = num(c)?;
+                if !(-1.0..=1.0).contains(&d) {
+                    bail!("{} line {line}: column 'travel_direction' = {d} is outside [-1, 1] (the sign of the planned velocity)", path.display());
+                }
+                Some(d)
+            }
+            (None, Some(c)) => {
+                let x = num(c)?;
+                held = last_ref.map_or(held, |l| sign_or(x - l, held));
+                last_ref = Some(x);
+                Some(held)
+            }
+            (None, None) => None,
+        };
+        let row = Row { line, t: num(c_t)?, motor_m: num(c_x)?, speed_rad_s: num(c_w)?, terminal_m: num(c_s)?, force_n: num(c_f)?, travel };
         if let Some(prev) = rows.last() {
             let prev: &Row = prev;
             if row.t <= prev.t {
@@ -241,7 +295,7 @@ fn cut_runs(path: &Path, rows: &[Row], o: &LogOptions, summary: &mut LogSummary)
             terminal_error_m: Vec::with_capacity(seg.len()),
         };
         for (j, r) in seg.iter().enumerate() {
-            let x: [f64; N_INPUTS] = [r.speed_rad_s, r.speed_rad_s * o.metres_per_rad, r.motor_m, r.force_n];
+            let x: [f64; N_INPUTS] = [r.speed_rad_s, r.speed_rad_s * o.metres_per_rad, r.motor_m, r.force_n, r.travel.unwrap_or(0.0)];
             if dir_of(r).is_some() {
                 summary.moving_s += seg.get(j + 1).map_or(0.0, |n| n.t - r.t);
             }
@@ -350,7 +404,19 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
         );
     }
     let name = files.first().and_then(|f| f.parent()).and_then(|p| p.file_name()).map_or("logs".into(), |n| n.to_string_lossy().into_owned());
-    Ok((Dataset::from_runs(&format!("logs:{name}"), runs).with_force_source(force_source), s))
+    // Five inputs only when every log gives the direction of travel: a
+    // dataset's inputs are the same in every run.
+    let travel = !o.static_inputs && s.travel_direction_from.iter().all(|f| f != "none");
+    if !travel {
+        for r in &mut runs {
+            for x in &mut r.inputs {
+                x[4] = 0.0;
+            }
+        }
+    }
+    s.inputs = if travel { N_INPUTS } else { super::dataset::STATIC_INPUTS };
+    let ds = Dataset::from_runs(&format!("logs:{name}"), runs).with_force_source(force_source).with_inputs(s.inputs);
+    Ok((ds, s))
 }
 
 /// The force the observer read in the logs: a load cell's own column says
@@ -405,6 +471,11 @@ pub struct FromLogsArgs {
     /// `load_force_estimate_n`; the weights are tied to it.
     #[arg(long, value_enum)]
     pub force_source: Option<crate::scenario::no_load_cell::ForceSource>,
+    /// The paper's four inputs only: leave the direction of travel out
+    /// even where the logs give it (weights for firmware without the fifth
+    /// input slot).
+    #[arg(long)]
+    pub static_inputs: bool,
 }
 
 /// Converts, writes `dataset.csv` and `summary.json`, prints what it found.
@@ -424,6 +495,7 @@ pub fn run_cli(a: &FromLogsArgs) -> Result<LogSummary> {
     o.motion_threshold_m_s = a.motion_threshold_m_s;
     o.min_runs_per_direction = a.min_runs_per_direction.max(1);
     o.force_source = a.force_source.map(|f| f.core());
+    o.static_inputs = a.static_inputs;
     let (ds, s) = convert(&a.logs, &o)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let path = a.out.join("dataset.csv");
@@ -432,7 +504,7 @@ pub fn run_cli(a: &FromLogsArgs) -> Result<LogSummary> {
     std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", a.out.join("summary.json").display()))?;
     println!(
-        "{} runs ({} elongation, {} contraction), {} samples, {:.1} s moving of {:.1} s in runs; load force {:.0}..{:.0} N ({}); max |terminal error| {:.1} µm",
+        "{} runs ({} elongation, {} contraction), {} samples, {:.1} s moving of {:.1} s in runs; load force {:.0}..{:.0} N ({}); max |terminal error| {:.1} µm; {} inputs",
         s.runs_elongation + s.runs_contraction,
         s.runs_elongation,
         s.runs_contraction,
@@ -442,7 +514,8 @@ pub fn run_cli(a: &FromLogsArgs) -> Result<LogSummary> {
         s.load_force_min_n,
         s.load_force_max_n,
         s.load_force_column,
-        s.terminal_error_max_abs_m * 1e6
+        s.terminal_error_max_abs_m * 1e6,
+        s.inputs
     );
     println!(
         "left out: {} rows not Running, {} rows before the first move, {} runs under {} samples, {} gaps cutting runs",

@@ -184,7 +184,7 @@ pub struct TrainReport {
     pub method: String,
     pub runs: RunLists,
     pub samples: SampleCounts,
-    pub input_columns: [&'static str; 4],
+    pub input_columns: Vec<&'static str>,
     pub hidden: usize,
     pub candidates: Vec<CandidateReport>,
     pub train: Metrics,
@@ -299,7 +299,7 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
     let mut models = Vec::new();
     for &h in &opts.hidden {
         pb.set_message(format!("H = {h}"));
-        let (model, rep) = train_one(h, opts, &norm, &train_batch, &val_batch, &ibas_batch, &train_all, &val_all, &pb);
+        let (model, rep) = train_one(h, ds.inputs, opts, &norm, &train_batch, &val_batch, &ibas_batch, &train_all, &val_all, &pb);
         candidates.push(rep);
         models.push(model);
     }
@@ -334,7 +334,7 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
             100.0 * test_m.out_of_range_fraction,
             test_m.below_range_per_input,
             test_m.above_range_per_input,
-            INPUT_COLUMNS
+            &INPUT_COLUMNS[..ds.inputs]
         ));
     }
     let physics_fit = match physics::PhysicsFit::fit(&train_used) {
@@ -362,7 +362,7 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
             validation: val_all.len(),
             test: test_all.len(),
         },
-        input_columns: INPUT_COLUMNS,
+        input_columns: INPUT_COLUMNS[..ds.inputs].to_vec(),
         hidden: model.hidden(),
         candidates,
         train: train_m,
@@ -381,6 +381,7 @@ pub fn train_dataset(ds: &Dataset, opts: &TrainOptions) -> Result<TrainReport> {
 #[allow(clippy::too_many_arguments)]
 fn train_one(
     h: usize,
+    inputs: usize,
     opts: &TrainOptions,
     norm: &Normaliser,
     train: &Batch,
@@ -391,7 +392,7 @@ fn train_one(
     pb: &ProgressBar,
 ) -> (TrainedModel, CandidateReport) {
     let t0 = Instant::now();
-    let rbf = Rbf::with_linear(h, opts.linear_term);
+    let rbf = Rbf::with_linear(h, opts.linear_term).with_inputs(inputs);
     // Each size has its own stream: results do not depend on which other sizes are tried.
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
     rng.set_stream(1000 + h as u64);

@@ -9,10 +9,14 @@
 //!
 //! Parameters live in one flat vector (what IBAS searches and back-propagation
 //! updates), laid out as
-//! `[c_1 (N_INPUTS values) … c_H, s_1 … s_H, w_1 … w_H, (a_1 … a_N), b]` with
-//! `σ_k = exp(s_k)` (the log keeps every width positive whatever the search does).
+//! `[c_1 (N values) … c_H, s_1 … s_H, w_1 … w_H, (a_1 … a_N), b]` with
+//! `σ_k = exp(s_k)` (the log keeps every width positive whatever the search
+//! does) and `N` the inputs the network uses: the paper's four, or five with
+//! the direction of travel. Input arrays always have the five slots; a
+//! four-input network reads the first four, and its normalisation keeps
+//! the fifth at the point 0 (unused, as the firmware runs it).
 
-use super::dataset::{ModelKind, N_INPUTS};
+use super::dataset::{ModelKind, N_INPUTS, STATIC_INPUTS};
 use rand::Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
@@ -20,12 +24,27 @@ use serde::{Deserialize, Serialize};
 /// Input min/max normalisation to `[-1, 1]` and target standardisation.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Normaliser {
-    /// Trained input range; inputs outside it are clamped to it.
+    /// Trained input range; inputs outside it are clamped to it. A
+    /// `model.json` of four inputs (written before the fifth slot) reads
+    /// with the fifth at `[0, 0]`.
+    #[serde(deserialize_with = "slots")]
     pub input_min: [f64; N_INPUTS],
+    #[serde(deserialize_with = "slots")]
     pub input_max: [f64; N_INPUTS],
     /// Network output 0 maps to `output_offset`, 1 to `output_offset + output_scale` (metres).
     pub output_offset: f64,
     pub output_scale: f64,
+}
+
+/// Four or five values into the five input slots (the rest 0).
+fn slots<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; N_INPUTS], D::Error> {
+    let v: Vec<f64> = Vec::deserialize(d)?;
+    if v.len() != STATIC_INPUTS && v.len() != N_INPUTS {
+        return Err(serde::de::Error::custom(format!("{} inputs; a model has {STATIC_INPUTS} or {N_INPUTS}", v.len())));
+    }
+    let mut a = [0.0; N_INPUTS];
+    a[..v.len()].copy_from_slice(&v);
+    Ok(a)
 }
 
 impl Normaliser {
@@ -117,40 +136,52 @@ pub struct Rbf {
     pub hidden: usize,
     /// With the linear skip term `Σ a_j z_j`.
     pub linear: bool,
+    /// Inputs used: the first 4 or all 5 slots (a `model.json` written
+    /// before the fifth slot has 4).
+    #[serde(default = "static_inputs")]
+    pub inputs: usize,
+}
+
+fn static_inputs() -> usize {
+    STATIC_INPUTS
 }
 
 impl Rbf {
-    /// The paper's network (no linear term).
+    /// The paper's network (no linear term, four inputs).
     pub fn new(hidden: usize) -> Rbf {
-        Rbf { hidden, linear: false }
+        Rbf { hidden, linear: false, inputs: STATIC_INPUTS }
     }
     pub fn with_linear(hidden: usize, linear: bool) -> Rbf {
-        Rbf { hidden, linear }
+        Rbf { hidden, linear, inputs: STATIC_INPUTS }
+    }
+    /// The same network on the first `inputs` input slots (4 or 5).
+    pub fn with_inputs(self, inputs: usize) -> Rbf {
+        Rbf { inputs: inputs.clamp(1, N_INPUTS), ..self }
     }
     pub fn n_params(&self) -> usize {
         self.b_at() + 1
     }
     fn n_linear(&self) -> usize {
         if self.linear {
-            N_INPUTS
+            self.inputs
         } else {
             0
         }
     }
     fn a_at(&self) -> usize {
-        self.hidden * (N_INPUTS + 2)
+        self.hidden * self.inputs + 2 * self.hidden
     }
     fn s_at(&self) -> usize {
-        self.hidden * N_INPUTS
+        self.hidden * self.inputs
     }
     fn w_at(&self) -> usize {
-        self.hidden * (N_INPUTS + 1)
+        self.hidden * self.inputs + self.hidden
     }
     fn b_at(&self) -> usize {
         self.a_at() + self.n_linear()
     }
     pub fn centre<'a>(&self, p: &'a [f64], k: usize) -> &'a [f64] {
-        &p[k * N_INPUTS..(k + 1) * N_INPUTS]
+        &p[k * self.inputs..(k + 1) * self.inputs]
     }
     pub fn log_widths<'a>(&self, p: &'a [f64]) -> &'a [f64] {
         &p[self.s_at()..self.w_at()]
@@ -158,11 +189,12 @@ impl Rbf {
     pub fn weights<'a>(&self, p: &'a [f64]) -> &'a [f64] {
         &p[self.w_at()..self.a_at()]
     }
-    /// Linear-term coefficients `a_j` (all zero without the term).
+    /// Linear-term coefficients `a_j` (all zero without the term, and in
+    /// unused slots).
     pub fn linear_coefficients(&self, p: &[f64]) -> [f64; N_INPUTS] {
         let mut a = [0.0; N_INPUTS];
         if self.linear {
-            a.copy_from_slice(&p[self.a_at()..self.b_at()]);
+            a[..self.inputs].copy_from_slice(&p[self.a_at()..self.b_at()]);
         }
         a
     }
@@ -176,7 +208,7 @@ impl Rbf {
     /// linear coefficients and bias 0.
     pub fn init_random(&self, rng: &mut impl Rng) -> Vec<f64> {
         let mut p = vec![0.0; self.n_params()];
-        let sigma0 = 2.0 / (self.hidden.max(1) as f64).powf(1.0 / N_INPUTS as f64);
+        let sigma0 = 2.0 / (self.hidden.max(1) as f64).powf(1.0 / self.inputs as f64);
         for v in &mut p[..self.s_at()] {
             *v = rng.random_range(-1.0..1.0);
         }
@@ -200,7 +232,7 @@ impl Rbf {
         for (aj, zj) in a.iter().zip(z) {
             y += aj * zj;
         }
-        for ((ck, &sk), &wk) in c.chunks_exact(N_INPUTS).zip(s).zip(w) {
+        for ((ck, &sk), &wk) in c.chunks_exact(self.inputs).zip(s).zip(w) {
             let d2 = dist2(z, ck);
             y += wk * (-d2 * 0.5 * (-2.0 * sk).exp()).exp();
         }
@@ -245,7 +277,7 @@ impl Rbf {
                     y += aj * zj;
                 }
                 for k in 0..h {
-                    let dk = dist2(z, &c[k * N_INPUTS..(k + 1) * N_INPUTS]);
+                    let dk = dist2(z, &c[k * self.inputs..(k + 1) * self.inputs]);
                     d2[k] = dk;
                     phi[k] = (-dk * g[k]).exp();
                     y += w[k] * phi[k];
@@ -264,9 +296,9 @@ impl Rbf {
                         continue;
                     }
                     gs[k] += a * d2[k];
-                    let ck = &c[k * N_INPUTS..(k + 1) * N_INPUTS];
-                    let gck = &mut gc[k * N_INPUTS..(k + 1) * N_INPUTS];
-                    for j in 0..N_INPUTS {
+                    let ck = &c[k * self.inputs..(k + 1) * self.inputs];
+                    let gck = &mut gc[k * self.inputs..(k + 1) * self.inputs];
+                    for j in 0..self.inputs {
                         gck[j] += a * (z[j] - ck[j]);
                     }
                 }
@@ -279,11 +311,12 @@ impl Rbf {
     }
 }
 
+/// `‖z − c‖²` over the inputs `c` has (the network's).
 #[inline]
 fn dist2(z: &[f64; N_INPUTS], c: &[f64]) -> f64 {
     let mut d = 0.0;
-    for j in 0..N_INPUTS {
-        let e = z[j] - c[j];
+    for (zj, cj) in z.iter().zip(c) {
+        let e = zj - cj;
         d += e * e;
     }
     d
@@ -307,20 +340,31 @@ impl TrainedModel {
     /// Prediction in metres for raw inputs (clamped to the trained range, as
     /// in the firmware), and whether any input was clamped.
     pub fn predict(&self, x: &[f64; N_INPUTS]) -> (f64, bool) {
-        let (z, clamped) = self.norm.normalise(x);
+        // Slots the network does not use carry nothing (as in the firmware).
+        let mut x = *x;
+        for v in x.iter_mut().skip(self.rbf.inputs) {
+            *v = 0.0;
+        }
+        let (z, clamped) = self.norm.normalise(&x);
         (self.norm.net_to_target(self.rbf.forward(&self.params, &z)), clamped)
     }
     pub fn hidden(&self) -> usize {
         self.rbf.hidden
     }
+    /// Centres in the five slots; an unused slot's coordinate is −1, where
+    /// its normalised input sits (`servo_core::observer::lift`).
     pub fn centres(&self) -> Vec<[f64; N_INPUTS]> {
         (0..self.rbf.hidden)
             .map(|k| {
-                let mut c = [0.0; N_INPUTS];
-                c.copy_from_slice(self.rbf.centre(&self.params, k));
+                let mut c = [-1.0; N_INPUTS];
+                c[..self.rbf.inputs].copy_from_slice(self.rbf.centre(&self.params, k));
                 c
             })
             .collect()
+    }
+    /// Inputs the model uses (4 or 5).
+    pub fn inputs(&self) -> usize {
+        self.rbf.inputs
     }
     /// σ_k (normalised input units).
     pub fn widths(&self) -> Vec<f64> {

@@ -73,7 +73,7 @@ pub fn paper_like(name: &str, runs: usize) -> Dataset {
             let f = payload * RATED_N * tilt_deg.to_radians().sin() + MASS_KG * a;
             let e = error_m(v, x, f);
             r.time_s.push(t);
-            r.inputs.push([2.0 * PI * v / LEAD_M, v, x, f]);
+            r.inputs.push([2.0 * PI * v / LEAD_M, v, x, f, 0.0]);
             r.motor_side_position_m.push(x);
             r.terminal_error_m.push(e);
             r.terminal_length_m.push(x + e);
