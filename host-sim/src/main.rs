@@ -255,7 +255,8 @@ fn main() -> Result<()> {
             let rows = host_sim::fault_injection::report::run_catalog(&rig, &out)?;
             print!("{}", host_sim::fault_injection::report::markdown_table(&rows));
             println!("{} of {} scenarios meet their requirement", rows.iter().filter(|r| r.passed).count(), rows.len());
-            Ok(())
+            let missed: Vec<String> = rows.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.violations.join(", "))).collect();
+            suite_done("faults", &missed, &out)
         }
         Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed, family: None } => {
             power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
@@ -351,10 +352,20 @@ fn paper(out: PathBuf, params: Option<PathBuf>, seed: u64, observer: bool) -> Re
     report::write_summary(&summary, &out)?;
     println!("{}", serde_json::to_string_pretty(&summary)?);
     println!("wrote {}/{{summary.json, telemetry.csv, plant.csv, *.png}}", out.display());
-    match trace.aborted {
-        Some(why) => anyhow::bail!("the paper run stopped early: {why} (the trace up to there is in {})", out.display()),
-        None => Ok(()),
+    if let Some(why) = &trace.aborted {
+        anyhow::bail!("the paper run stopped early: {why} (the trace up to there is in {})", out.display());
     }
+    suite_done("paper", &host_sim::scenario::family::misses(&summary), &out)
+}
+
+/// A single-rig suite's end, as the family modes end: after its
+/// summary.json is written, a missed requirement fails the command
+/// (exit 1), naming each scenario that missed and why.
+fn suite_done(command: &str, missed: &[String], out: &std::path::Path) -> Result<()> {
+    if missed.is_empty() {
+        return Ok(());
+    }
+    anyhow::bail!("{command}: {} missed its requirement: {} (summary: {})", missed.len(), missed.join("; "), out.join("summary.json").display())
 }
 
 fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64) -> Result<()> {
@@ -375,7 +386,8 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     }
     println!("{}", serde_json::to_string_pretty(&brief)?);
     print!("{}", std::fs::read_to_string(out.join("cases.md"))?);
-    Ok(())
+    let missed: Vec<String> = rows.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.verdict)).collect();
+    suite_done("power-up", &missed, &out)
 }
 
 fn check_rod_range(lo: f64, hi: f64) -> Result<()> {

@@ -148,7 +148,13 @@ pub(crate) fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_peri
     let mut accepted = 0u32;
     let mut pending = false;
     for k in 0..golden::CLOSED_LOOP_PERIODS {
-        for (_, cmd) in CLOSED_LOOP_SCRIPT.iter().filter(|(at, _)| *at == k) {
+        // A test is refused during a move and until the axis has held
+        // still once after Enable; the script's move lasts until after
+        // period 4600, past which the axis cannot settle before Disable.
+        // The test starts are measured at home instead: the axis settles
+        // after about 1200 periods and the rest of the run serves them.
+        let script = CLOSED_LOOP_SCRIPT.iter().filter(|(at, cmd)| *at == k && !(op == Bulk::TestStart && matches!(cmd, servo_core::Command::MoveTo { .. })));
+        for (_, cmd) in script {
             let _ = c.command(*cmd);
         }
         plant.advance(&out);

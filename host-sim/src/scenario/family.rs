@@ -13,6 +13,22 @@ use std::path::Path;
 pub const TRACKING_RMS_MAX_UM: f64 = 5.0;
 pub const TRACKING_MAX_MAX_UM: f64 = 50.0;
 
+/// What a paper run misses of its requirement (empty: met); the family
+/// mode and the single-rig `paper` judge a rig by the same words.
+pub fn misses(s: &metrics::PaperSummary) -> Vec<String> {
+    let mut why = vec![];
+    if let Some(a) = &s.aborted {
+        why.push(format!("stopped early: {a}"));
+    }
+    if !(s.motor_tracking_rms_um <= TRACKING_RMS_MAX_UM) {
+        why.push(format!("motor-side RMS {:.2} µm > {TRACKING_RMS_MAX_UM}", s.motor_tracking_rms_um));
+    }
+    if !(s.motor_tracking_max_um <= TRACKING_MAX_MAX_UM) {
+        why.push(format!("motor-side max {:.1} µm > {TRACKING_MAX_MAX_UM}", s.motor_tracking_max_um));
+    }
+    why
+}
+
 /// The paper's run (sensor noise from `seed`) on each rig of `family`,
 /// rigs in parallel; each rig's summary in `out/<rig>/`, the family's in `out`.
 /// `tune_filter`: each rig's torque filter chosen first by its own test
@@ -29,16 +45,7 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, seed: u64, tune_filte
             let trace = run_stroke_cycle(&rig, &cycle).with_context(|| r.name.clone())?;
             let s = metrics::paper_summary(&trace, seed, cycle.settle_s);
             report::write_summary(&s, &dir)?;
-            let mut why = vec![];
-            if let Some(a) = &s.aborted {
-                why.push(format!("stopped early: {a}"));
-            }
-            if s.motor_tracking_rms_um > TRACKING_RMS_MAX_UM {
-                why.push(format!("motor-side RMS {:.2} µm > {TRACKING_RMS_MAX_UM}", s.motor_tracking_rms_um));
-            }
-            if s.motor_tracking_max_um > TRACKING_MAX_MAX_UM {
-                why.push(format!("motor-side max {:.1} µm > {TRACKING_MAX_MAX_UM}", s.motor_tracking_max_um));
-            }
+            let why = misses(&s);
             Ok(RigRow {
                 rig: r.name.clone(),
                 passed: why.is_empty(),

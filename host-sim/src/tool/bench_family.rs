@@ -9,6 +9,31 @@ use crate::scenario::family::{tuned, TRACKING_MAX_MAX_UM, TRACKING_RMS_MAX_UM};
 use anyhow::{Context, Result};
 use std::path::Path;
 
+/// What a streamed run (`stream_and_capture`'s summary) misses of its
+/// requirement (empty: met); the family mode and the single-rig
+/// `drive bench-stream` judge a rig by the same words.
+pub fn misses(s: &serde_json::Value) -> Vec<String> {
+    let (rms, max) = (s["motor_tracking_rms_um"].as_f64(), s["motor_tracking_max_um"].as_f64());
+    let refusals = s["refusals"].as_u64().unwrap_or(0);
+    let faults: Vec<String> = s["faults"].as_array().into_iter().flatten().filter_map(|f| f.as_str().map(String::from)).collect();
+    let mut why = vec![];
+    if refusals > 0 {
+        why.push(format!("{refusals} setpoints refused"));
+    }
+    if !faults.is_empty() {
+        why.push(format!("faults {}", faults.join(", ")));
+    }
+    match rms {
+        Some(v) if v <= TRACKING_RMS_MAX_UM => {}
+        v => why.push(format!("motor-side RMS {:.2} µm > {TRACKING_RMS_MAX_UM}", v.unwrap_or(f64::NAN))),
+    }
+    match max {
+        Some(v) if v <= TRACKING_MAX_MAX_UM => {}
+        v => why.push(format!("motor-side max {:.1} µm > {TRACKING_MAX_MAX_UM}", v.unwrap_or(f64::NAN))),
+    }
+    why
+}
+
 /// The stream on each rig in turn (each serves its own simulated drive on a
 /// local port); each rig's summary in `out/<rig>/`. `tune_filter`: each
 /// rig's torque filter chosen first by its own test moves.
@@ -23,22 +48,7 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, tune_filter: bool, ou
         std::fs::write(dir.join("summary.json"), serde_json::to_string_pretty(&s)?)?;
         let (rms, max) = (s["motor_tracking_rms_um"].as_f64(), s["motor_tracking_max_um"].as_f64());
         let refusals = s["refusals"].as_u64().unwrap_or(0);
-        let faults: Vec<String> = s["faults"].as_array().into_iter().flatten().filter_map(|f| f.as_str().map(String::from)).collect();
-        let mut why = vec![];
-        if refusals > 0 {
-            why.push(format!("{refusals} setpoints refused"));
-        }
-        if !faults.is_empty() {
-            why.push(format!("faults {}", faults.join(", ")));
-        }
-        match rms {
-            Some(v) if v <= TRACKING_RMS_MAX_UM => {}
-            v => why.push(format!("motor-side RMS {:.2} µm > {TRACKING_RMS_MAX_UM}", v.unwrap_or(f64::NAN))),
-        }
-        match max {
-            Some(v) if v <= TRACKING_MAX_MAX_UM => {}
-            v => why.push(format!("motor-side max {:.1} µm > {TRACKING_MAX_MAX_UM}", v.unwrap_or(f64::NAN))),
-        }
+        let why = misses(&s);
         rows.push(RigRow {
             rig: r.name.clone(),
             passed: why.is_empty(),

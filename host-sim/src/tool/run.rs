@@ -57,6 +57,10 @@ pub fn run_cli(a: DriveArgs) -> Result<()> {
         DriveCmd::BenchStream { out, params, family: None, .. } => {
             let s = bench::run(&RigConfig::load_or_nominal(params.as_ref())?, &out)?;
             println!("{}", serde_json::to_string_pretty(&s)?);
+            let why = bench_family::misses(&s);
+            if !why.is_empty() {
+                bail!("drive bench-stream: the stream missed its requirement: {} (summary: {})", why.join("; "), out.join("summary.json").display());
+            }
             Ok(())
         }
         DriveCmd::BenchAsap { out, params, seconds, rate_hz } => {

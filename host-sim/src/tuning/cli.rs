@@ -201,9 +201,31 @@ pub fn run(a: TuneArgs) -> Result<()> {
             let s = bench(&rig, &out, cases.as_deref())?;
             println!("{}", serde_json::to_string_pretty(&s["table"])?);
             println!("{}", serde_json::to_string_pretty(&s["refused"])?);
+            let why = bench_misses(&s);
+            if !why.is_empty() {
+                bail!("tune bench: {} (summary: {})", why.join("; "), out.join("summary.json").display());
+            }
             Ok(())
         }
     }
+}
+
+/// What a bench's summary misses: each accepted loop result outside its
+/// ask, each check that failed, or no accepted case at all (a refusal with
+/// its reason is an answer, not a miss).
+pub fn bench_misses(s: &serde_json::Value) -> Vec<String> {
+    let mut why: Vec<String> = s["table"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|r| r["pass"].as_bool() != Some(true))
+        .map(|r| format!("{} {} loop outside its ask (bandwidth error {} %, overshoot {} % asked {} %)", r["case"], r["loop"], r["bandwidth_error_pct"], r["achieved_overshoot_pct"], r["asked_overshoot_pct"]))
+        .collect();
+    why.extend(s["check_failed"].as_array().into_iter().flatten().map(|f| format!("{} check failed: {}", f["case"], f["check_failed"])));
+    if s["table"].as_array().is_none_or(Vec::is_empty) && why.is_empty() {
+        why.push("no case was accepted".into());
+    }
+    why
 }
 
 fn rig_load_n(rig: &RigConfig) -> f64 {
