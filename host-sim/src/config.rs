@@ -33,8 +33,11 @@ impl RigConfig {
     /// the plant carries against what its motor and brake can hold.
     pub fn validate(&self) -> std::result::Result<(), ParamError> {
         self.control.validate().map_err(|e| ParamError { field: "control".into(), reason: e.to_string() })?;
-        self.plant.validate()?;
-        self.check_payload()
+        // The payload before the step rule: a mass off by a unit is named
+        // as the payload beyond the rated thrust, not as the stiff rate it makes.
+        self.plant.validate_fields()?;
+        self.check_payload()?;
+        self.plant.check_step_resolves_dynamics()
     }
 
     /// The heaviest payload this rig can carry hanging vertically: the

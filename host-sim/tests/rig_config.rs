@@ -55,6 +55,21 @@ fn a_payload_beyond_what_the_motor_and_brake_hold_is_refused_naming_the_bound() 
 }
 
 #[test]
+fn a_value_off_by_a_unit_is_refused_naming_its_own_field() {
+    // A lead in millimetres, a payload in grams: each named as itself, not
+    // as the stiff rate it would make the integrator face.
+    for (edit, field, bound) in [
+        (("\nlead_m = 0.005", "\nlead_m = 5.0"), "plant.screw.lead_m", "<= 0.1 m"),
+        (("payload_mass_kg = 136.5", "payload_mass_kg = 136500.0"), "plant.rod.payload_mass_kg", "rated thrust"),
+    ] {
+        let text = DEFAULT_RIG_TOML.replace(edit.0, edit.1);
+        assert_ne!(text, DEFAULT_RIG_TOML, "the test's edit must hit the file");
+        let err = RigConfig::from_toml(&text, "units.toml").unwrap_err().to_string();
+        assert!(err.starts_with(&format!("units.toml: {field}")) && err.contains(bound), "{err}");
+    }
+}
+
+#[test]
 fn a_light_payload_that_needs_more_substeps_loads_and_runs() {
     // 2 % of the rated payload: the rod friction's regularisation rate
     // needs two RK4 steps per PWM period; the plant takes them itself.
@@ -127,6 +142,18 @@ mod family {
             let name = format!("{}.toml", r.name);
             assert_eq!(std::fs::read(dir.path().join(&name)).unwrap(), std::fs::read(again.path().join(&name)).unwrap());
         }
+    }
+
+    #[test]
+    fn a_family_folder_without_a_manifest_refuses_a_stray_file_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = load_family(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("no rig files"), "{e}");
+        std::fs::write(dir.path().join("rig_a.toml"), DEFAULT_RIG_TOML).unwrap();
+        assert_eq!(load_family(dir.path()).unwrap().len(), 1);
+        std::fs::write(dir.path().join("rig_b.toml.bak"), DEFAULT_RIG_TOML).unwrap();
+        let e = load_family(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("rig_b.toml.bak") && e.contains("not a rig file"), "{e}");
     }
 
     #[test]

@@ -77,6 +77,13 @@ impl PlantParams {
     /// Refuses missing-in-spirit (non-finite), negative, zero-where-impossible
     /// and inconsistent values, and a step too long for the stiffest dynamics.
     pub fn validate(&self) -> Result<(), ParamError> {
+        self.validate_fields()?;
+        self.check_step_resolves_dynamics()
+    }
+
+    /// Every field against its own bound, before the step rule: a value
+    /// off by a unit is named as itself, not as the stiff rate it makes.
+    pub fn validate_fields(&self) -> Result<(), ParamError> {
         let m = &self.motor;
         if m.pole_pairs == 0 {
             return Err(ParamError::new("plant.motor.pole_pairs", "must be >= 1"));
@@ -100,6 +107,12 @@ impl PlantParams {
 
         let s = &self.screw;
         positive("plant.screw.lead_m", s.lead_m)?;
+        if s.lead_m > LEAD_MAX_M {
+            return Err(ParamError::new(
+                "plant.screw.lead_m",
+                format!("{} m per turn is beyond a ball screw's lead; must be <= {LEAD_MAX_M} m (a value in millimetres?)", s.lead_m),
+            ));
+        }
         positive("plant.screw.inertia_kg_m2", s.inertia_kg_m2)?;
         non_negative("plant.screw.viscous_friction_n_m_s_rad", s.viscous_friction_n_m_s_rad)?;
         positive("plant.screw.efficiency", s.efficiency)?;
@@ -224,7 +237,7 @@ impl PlantParams {
             non_negative("plant.brake.stiffness_n_m_rad", b.stiffness_n_m_rad)?;
         }
         non_negative("plant.brake.damping_n_m_s_rad", b.damping_n_m_s_rad)?;
-        self.check_step_resolves_dynamics()
+        Ok(())
     }
 
     /// RK4 steps per PWM period the step rule asks for: the fewest that put
@@ -301,7 +314,7 @@ impl PlantParams {
     /// Refuses a rig whose fastest dynamics would need more than
     /// `MAX_SUBSTEPS` RK4 steps per PWM period, naming the field that
     /// makes the rate so fast.
-    fn check_step_resolves_dynamics(&self) -> Result<(), ParamError> {
+    pub fn check_step_resolves_dynamics(&self) -> Result<(), ParamError> {
         let f_pwm = self.integration.pwm_frequency_hz;
         for (name, rate) in self.fastest_rates_per_s() {
             if !rate.is_finite() {
@@ -329,6 +342,10 @@ impl PlantParams {
 /// value far outside any real cylinder's (a regularisation velocity
 /// thousands of times below the Stribeck velocity, a bumper of steel).
 pub const MAX_SUBSTEPS: u32 = 64;
+
+/// The longest lead a ball screw is made with, m per turn (large-lead
+/// screws reach about 80 mm).
+pub const LEAD_MAX_M: f64 = 0.1;
 
 /// Largest minimum a rig file may ask for itself (convergence studies).
 pub const MAX_MINIMUM_SUBSTEPS: u32 = 1024;

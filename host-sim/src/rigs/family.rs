@@ -15,7 +15,7 @@ pub struct FamilyRig {
 }
 
 /// The rigs of `dir`: those `family.json` lists (as `host-sim rigs`
-/// writes it), else every `*.toml` in name order. Every file must load;
+/// writes it), else every `*.toml` in name order, any other file refused. Every file must load;
 /// the first that does not is named with its field.
 pub fn load_family(dir: &Path) -> Result<Vec<FamilyRig>> {
     if !dir.is_dir() {
@@ -45,6 +45,15 @@ pub fn load_family(dir: &Path) -> Result<Vec<FamilyRig>> {
             if p.extension().is_some_and(|x| x == "toml") {
                 let name = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
                 out.push((name, p));
+            } else {
+                // Without a manifest every file is meant as a rig: one that
+                // is not (a backup, a note) is named, never passed over.
+                bail!(
+                    "--family {}: {} is not a rig file (*.toml); move it out, or list the rigs in {}/family.json",
+                    dir.display(),
+                    p.display(),
+                    dir.display()
+                );
             }
         }
         out.sort();
