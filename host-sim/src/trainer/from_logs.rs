@@ -55,6 +55,10 @@ pub struct LogOptions {
     pub gap_s: f64,
     pub min_runs_per_direction: usize,
     pub min_samples_per_run: usize,
+    /// Net motor-side travel a run needs (m): the drive's own setpoint
+    /// shift (at most `faults.observer_shift_max_m`, 2 mm) ramping in after
+    /// an enable moves the rod too, and is not a move.
+    pub min_run_travel_m: f64,
     /// The force the drive's observer read while logging (`None`: known
     /// only from a `load_force_n` column).
     pub force_source: Option<ForceSource>,
@@ -76,6 +80,7 @@ impl LogOptions {
             gap_s: 0.5,
             min_runs_per_direction: 4,
             min_samples_per_run: 20,
+            min_run_travel_m: 0.005,
             force_source: None,
             static_inputs: false,
         }
@@ -91,7 +96,9 @@ pub struct LogSummary {
     pub rows_not_running: usize,
     /// Rows before the first move of each file (no run yet).
     pub rows_before_first_move: usize,
-    /// Runs shorter than `min_samples_per_run`, left out: (run, samples).
+    /// Runs shorter than `min_samples_per_run`, or travelling less than
+    /// `min_run_travel_m` with no run right after them, left out: (run,
+    /// samples).
     pub short_runs_left_out: Vec<(String, usize)>,
     pub gaps_cutting_runs: usize,
     pub runs_elongation: usize,
@@ -272,11 +279,28 @@ fn cut_runs(path: &Path, rows: &[Row], o: &LogOptions, summary: &mut LogSummary)
     }
     summary.rows_before_first_move += starts.first().map_or(rows.len(), |s| s.0);
     let mut runs = Vec::new();
+    // A stretch that travels less than a move (the setpoint shift ramping
+    // in) is not a run of its own: its rows go to the run that follows it
+    // without a gap, whose direction is the move's.
+    let mut carried: Option<usize> = None;
     for (k, &(s, d)) in starts.iter().enumerate() {
         let next_start = starts.get(k + 1).map_or(rows.len(), |n| n.0);
         let e = ends.iter().copied().find(|&e| e > s).unwrap_or(rows.len()).min(next_start);
-        let seg = &rows[s..e];
         let id = format!("{stem}-{k:03}");
+        let travel_m = match (rows.get(s), rows.get(e.saturating_sub(1))) {
+            (Some(a), Some(b)) if e > s => (b.motor_m - a.motor_m).abs(),
+            _ => 0.0,
+        };
+        let from = carried.take().unwrap_or(s);
+        if travel_m < o.min_run_travel_m {
+            if e == next_start && e < rows.len() {
+                carried = Some(from);
+            } else {
+                summary.short_runs_left_out.push((id, e - from));
+            }
+            continue;
+        }
+        let seg = &rows[from..e];
         if seg.len() < o.min_samples_per_run {
             summary.short_runs_left_out.push((id, seg.len()));
             continue;

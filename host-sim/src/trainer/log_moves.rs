@@ -19,6 +19,8 @@ pub struct LogPlan {
     pub start_m: f64,
     /// Positions moved to in turn (m), each followed by `dwell_s`.
     pub targets_m: Vec<f32>,
+    /// Held at rest after the brake has let go, before the first move.
+    pub settle_s: f64,
     pub dwell_s: f64,
     /// Telemetry rate (Hz).
     pub rate_hz: u16,
@@ -31,14 +33,17 @@ impl LogPlan {
     /// `cycles` strokes out and back over the whole travel used, 0 to
     /// 0.45 m, with shorter moves in between (the loads at several
     /// speeds). The network clamps the displacement to the range it saw,
-    /// so the ends of the travel must be in the log.
+    /// so the ends of the travel must be in the log. Logged as the drive
+    /// runs in service: compensation on (the shift's rate is fed forward
+    /// during moves, which shapes the speed and force at each move start),
+    /// and the first move from a settled hold, as after any enable.
     pub fn strokes(payload_scale: f64, cycles: usize, seed: u64) -> Self {
         let mut targets_m = Vec::new();
         for k in 0..cycles {
             let mid = 0.15 + 0.05 * (k % 3) as f32;
             targets_m.extend([0.45, mid, 0.35, 0.0]);
         }
-        Self { payload_scale, start_m: 0.0, targets_m, dwell_s: 0.3, rate_hz: 200, compensation: false, seed }
+        Self { payload_scale, start_m: 0.0, targets_m, settle_s: 0.5, dwell_s: 0.3, rate_hz: 200, compensation: true, seed }
     }
 }
 
@@ -94,6 +99,9 @@ pub fn record(rig: &RigConfig, plan: &LogPlan, path: &Path) -> Result<f64> {
         if k > 5000 {
             bail!("the simulated drive did not reach Running: {:?}", d.cl.controller.telemetry().faults);
         }
+    }
+    for _ in 0..((plan.settle_s / period).round() as usize) {
+        d.step_to_boundary(&mut frames);
     }
     write(&mut frames)?;
     for &x in &plan.targets_m {

@@ -29,7 +29,7 @@ pub struct RouteArgs {
     #[arg(long)]
     pub params: Option<PathBuf>,
     /// Stroke cycles logged per payload.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 6)]
     pub cycles: usize,
     /// Log with the friction feedforward as the rig file has it, instead of
     /// identifying the friction first.

@@ -49,7 +49,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',')]
     pub groups: Vec<String>,
     /// Stroke cycles logged per payload for retraining.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 6)]
     pub cycles: usize,
     /// Weights to evaluate in the "shipped" group instead of the compiled
     /// ones: a trainer's model.json, before it is compiled in.
