@@ -12,9 +12,14 @@ use crate::plant::Plant;
 use crate::sim::{commissioned_control, ClosedLoop};
 use anyhow::{anyhow, bail, Result};
 use servo_core::capture::CaptureStore;
+use servo_core::reason::Reason;
 use servo_core::protocol::{CaptureConfig, CaptureState, CaptureTrigger, ChirpTarget, Signal, TestSignal};
 use servo_core::{Command, ControlParams, Controller, Mode};
 use std::f64::consts::PI;
+
+/// How long a check waits for the drive to settle after Enable before a
+/// test, seconds (the host tool waits as long on a board).
+const SETTLE_WAIT_MAX_S: f64 = 10.0;
 
 type C64 = Complex<f64>;
 
@@ -170,7 +175,24 @@ pub fn run_test(cl: &mut ClosedLoop, spec: &TestSpec) -> Result<Captured> {
             bail!("faults before the test started: {:?}", tel.faults.names().collect::<Vec<_>>());
         }
     }
-    cl.controller.start_test(spec.test_signal()).map_err(|e| anyhow!("test refused: {e}"))?;
+    // As the host tool does on a board: a drive that is still taking the
+    // load over from the brake refuses a test until the loops have held the
+    // rod still once; wait that out (bounded), never a test on the hand-over.
+    let wait_max = (SETTLE_WAIT_MAX_S * pwm) as u64;
+    let mut waited = 0u64;
+    loop {
+        match cl.controller.start_test(spec.test_signal()) {
+            Ok(()) => break,
+            Err(Reason::BrakeOpening | Reason::AxisNotYetSettled) if waited < wait_max => {
+                let tel = cl.step();
+                if !tel.faults.is_empty() {
+                    bail!("faults while waiting to start the test: {:?}", tel.faults.names().collect::<Vec<_>>());
+                }
+                waited += 1;
+            }
+            Err(e) => bail!("test refused: {e}"),
+        }
+    }
     let max = (3.0 * spec.duration_s * pwm) as u64 + 400_000;
     for _ in 0..max {
         let tel = cl.step();
