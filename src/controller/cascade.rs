@@ -70,6 +70,20 @@ impl Controller {
         if limit < self.derived.current_limit_a {
             self.limits.insert(LimitFlags::THERMAL);
         }
+        // The open-phase probe runs only told to turn, where the detector
+        // can sweep every phase; at standstill, in a foldback and during a
+        // test the d reference stays the test's or 0.
+        if !self.test.suspends_speed() {
+            let told_to_turn = matches!(self.mode, Mode::Running | Mode::Stopping)
+                && self.speed_reference_rad_s.abs() > self.params.faults.encoder_lost_speed_rad_s
+                && !self.test.active()
+                && !(limit < self.derived.current_limit_a);
+            self.current_reference.d = if told_to_turn {
+                crate::protection::open_phase::probe_current_d_a(&self.params.faults, self.current_reference.q, limit)
+            } else {
+                0.0
+            };
+        }
         let iq_max2 = limit * limit - self.current_reference.d * self.current_reference.d;
         let iq_max = crate::math::sqrt(crate::math::max(iq_max2, 0.0));
         self.q_current_limit_a = iq_max;

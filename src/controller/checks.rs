@@ -2,7 +2,7 @@
 //! faults out. The reactions live in `reactions.rs`.
 
 use super::Controller;
-use crate::foc::transforms::{inverse_clarke, inverse_park, SinCos};
+use crate::foc::transforms::SinCos;
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
 use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
@@ -216,7 +216,7 @@ impl Controller {
             return present;
         }
         let sc = SinCos::of(self.rotor_state().electrical_angle_rad);
-        let reference_a = inverse_clarke(inverse_park(self.current_reference, sc));
+        let reference_a = self.open_phase.expected_phase_current_a(self.derived.open_phase_follow_gain, self.current_reference, sc);
         let window = self.derived.open_phase_window_ticks;
         if let Some(open) = self.open_phase.update(&self.params.faults, window, reference_a, phase_current_a) {
             self.open_phase_present = open;

@@ -54,6 +54,8 @@ struct Derived {
     /// radians, one multiply per period.
     electrical_rad_per_count: f32,
     open_phase_window_ticks: u32,
+    /// The open-phase model's per-speed-period gain towards the reference.
+    open_phase_follow_gain: f32,
     brake_release_periods: u32,
     brake_engage_periods: u32,
     /// `Enable` holds the brake closed this many periods while the hold
@@ -82,6 +84,7 @@ impl Derived {
             rad_per_metre: 2.0 * PI / p.drive_train.screw_lead_m,
             electrical_rad_per_count: p.motor.pole_pairs as f32 * (2.0 * PI / cpr),
             open_phase_window_ticks: periods(p.faults.open_phase_window_s, p.speed_period_s()),
+            open_phase_follow_gain: crate::protection::open_phase::follow_gain(p.current_pi.kp, p.motor.inductance_q_h, p.speed_period_s()),
             brake_release_periods: periods(p.brake.release_time_s, p.pwm_period_s()),
             brake_engage_periods: periods(p.brake.engage_time_s, p.pwm_period_s()),
             brake_preload_periods: if p.brake.fitted { periods(p.brake.preload_time_s, p.pwm_period_s()) } else { 0 },
