@@ -134,15 +134,15 @@ fn column(header: &csv::StringRecord, names: &[&str], path: &Path, what: &str) -
     })
 }
 
-struct Row {
-    line: u64,
-    t: f64,
-    motor_m: f64,
-    speed_rad_s: f64,
-    terminal_m: f64,
-    force_n: f64,
+pub(super) struct Row {
+    pub(super) line: u64,
+    pub(super) t: f64,
+    pub(super) motor_m: f64,
+    pub(super) speed_rad_s: f64,
+    pub(super) terminal_m: f64,
+    pub(super) force_n: f64,
     /// The direction of travel, if the log gives it.
-    travel: Option<f64>,
+    pub(super) travel: Option<f64>,
 }
 
 /// The sign of `d`, or `held` where it is 0.
@@ -156,7 +156,7 @@ fn sign_or(d: f64, held: f64) -> f64 {
     }
 }
 
-fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)> {
+pub(super) fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)> {
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_path(path).with_context(|| format!("opening {}", path.display()))?;
     let header = rdr.headers().with_context(|| format!("{} line 1: reading the header", path.display()))?.clone();
     let c_t = column(&header, &["time_s"], path, "the time")?;
