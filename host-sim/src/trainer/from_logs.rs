@@ -374,7 +374,7 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
     let logs_named = files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ");
     if runs.is_empty() {
         bail!(
-            "{logs_named}: no move: the rod never moves faster than {} mm/s for {} samples (or the drive never ran); log moves in both directions (docs/observer.md)",
+            "{logs_named}: no move: the rod never moves faster than {} mm/s for {} samples (or the drive never ran); log moves in both directions (docs/observer-retraining.md, \"What to log\")",
             o.motion_threshold_m_s * 1e3,
             o.min_samples_per_run
         );
@@ -470,7 +470,7 @@ fn force_source_of(columns: &[String], given: Option<ForceSource>, files: &[Path
 #[command(allow_negative_numbers = true)]
 pub struct FromLogsArgs {
     /// Log files (CSV) or folders of them: `drive telemetry --csv` records,
-    /// or a logger's CSV with the same columns (docs/observer.md).
+    /// or a logger's CSV with the same columns (docs/observer-retraining.md).
     #[arg(required = true)]
     pub logs: Vec<PathBuf>,
     /// Output folder: dataset.csv (the trainer's format) and summary.json.
