@@ -335,8 +335,8 @@ fn cut_runs(path: &Path, rows: &[Row], o: &LogOptions, summary: &mut LogSummary)
     runs
 }
 
-/// The dataset of `logs`, checked for what the model needs.
-pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)> {
+/// The CSV files of `logs`: files as given, folders' `.csv` files sorted.
+pub(super) fn log_files(logs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     if logs.is_empty() {
         bail!("no log given");
     }
@@ -359,6 +359,12 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
             bail!("log {} does not exist", p.display());
         }
     }
+    Ok(files)
+}
+
+/// The dataset of `logs`, checked for what the model needs.
+pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)> {
+    let files = log_files(logs)?;
     let mut s = LogSummary { load_range_needed_n: o.load_range_n, load_force_min_n: f64::INFINITY, load_force_max_n: f64::NEG_INFINITY, ..LogSummary::default() };
     let mut runs = Vec::new();
     let mut force_cols = Vec::new();

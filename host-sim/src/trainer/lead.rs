@@ -17,8 +17,8 @@
 //! (a scale's zero is wherever it was homed) separates the scale error from
 //! the load's: logs at two or more payloads give the slope at zero force.
 
-use super::from_logs::{read_log, LogSummary};
-use anyhow::{bail, Result};
+use super::from_logs::{log_files, read_log, LogSummary};
+use anyhow::{bail, Context, Result};
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
 
@@ -54,6 +54,7 @@ pub struct LeadFit {
 /// Fits the scale error on `logs` (telemetry CSVs as `dataset-from-logs`
 /// reads them) recorded by a drive that believed `lead_m`.
 pub fn fit(logs: &[PathBuf], lead_m: f64) -> Result<LeadFit> {
+    let logs = &log_files(logs)?;
     let mut summary = LogSummary::default();
     // Per sample: file, x, F, d, terminal − motor.
     let mut samples: Vec<(usize, f64, f64, f64, f64)> = Vec::new();
@@ -138,4 +139,41 @@ pub fn fit(logs: &[PathBuf], lead_m: f64) -> Result<LeadFit> {
         residual_rms_m: (resid.norm_squared() / samples.len() as f64).sqrt(),
         force_at_rest_n: force_at_rest,
     })
+}
+
+/// `host-sim lead-from-logs`.
+#[derive(clap::Args, Debug)]
+pub struct LeadArgs {
+    /// Telemetry logs (CSV) or folders of them, at two payloads or more,
+    /// strokes with stops along the travel (docs/observer-retraining.md).
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Output folder for summary.json.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Rig file, for the lead the drive believed while logging; default:
+    /// the shipped rig.
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+}
+
+/// Fits, writes `summary.json`, prints the `drive param set` to apply.
+pub fn run_cli(a: &LeadArgs) -> Result<LeadFit> {
+    let rig = crate::config::RigConfig::load_or_nominal(a.params.as_ref())?;
+    let f = fit(&a.logs, f64::from(rig.control.drive_train.screw_lead_m))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let summary = serde_json::json!({ "command": "host-sim lead-from-logs", "fit": f, "param_set": { "drive_train.screw_lead_m": f.lead_m } });
+    let path = a.out.join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary)?).with_context(|| format!("writing {}", path.display()))?;
+    println!(
+        "scale error {:+.1} ± {:.1} µm per 300 mm over {} samples at rest (residual {:.1} µm); forces at rest {:?} N",
+        f.scale_error * 0.3e6,
+        f.scale_error_sigma * 0.3e6,
+        f.samples_at_rest,
+        f.residual_rms_m * 1e6,
+        f.force_at_rest_n.iter().map(|x| x.round()).collect::<Vec<_>>()
+    );
+    println!("apply with the bridge off: host-sim drive --port PORT param set drive_train.screw_lead_m {:.9}", f.lead_m);
+    println!("wrote {}", path.display());
+    Ok(f)
 }
