@@ -203,3 +203,66 @@ fn edge_sd(ch: &Chan, e: &[usize], j: usize, (lo, hi): (usize, usize), m: usize)
     // A single sample's width: uniform within it.
     (0.5 * (last - first) as f64).max(1.0 / 12f64.sqrt())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::residual::sg_smooth;
+
+    /// A 120 ms pulse on the smoothed torque channel, its onset 25 ms
+    /// after a move-start transient (a 15 ms blip) that the detector also
+    /// picked, and its edges detected 12 samples off: the joint fit puts
+    /// both edges within a sample and its stated 1-sigma, which a clamp at
+    /// the detector's separation from the transient's pick cannot (the
+    /// onset would be held 51 samples from it, 26 late).
+    #[test]
+    fn an_edge_beside_a_transient_pick_is_placed_at_its_step() {
+        let (n, m, dt) = (1200, 10, 1e-3);
+        let (on, off, blip) = (500, 620, 475);
+        let mut st = 0x9e37_79b9_7f4a_7c15u64;
+        let mut noise = || {
+            st ^= st << 13;
+            st ^= st >> 7;
+            st ^= st << 17;
+            (st as f64 / u64::MAX as f64 - 0.5) * 0.4
+        };
+        let raw: Vec<f64> = (0..n)
+            .map(|i| {
+                let pulse = if (on..off).contains(&i) { 5.0 } else { 0.0 };
+                let tr = if (blip..blip + 15).contains(&i) { 3.0 } else { 0.0 };
+                pulse + tr + noise()
+            })
+            .collect();
+        let x = sg_smooth(&raw, m);
+        let s = Segment { t: (0..n).map(|i| i as f64 * dt).collect(), dt, sg_m: m, motion_weight: vec![1.0; n], ..Default::default() };
+        let r: [Option<Vec<f64>>; NCH] = std::array::from_fn(|c| (c == TORQUE).then(|| x.clone()));
+        let cands = [blip, on + 12, off - 12];
+        let e = fit_edges(&s, &r, &cands, 8.0, [0.0, 0.5], |c| c == TORQUE);
+        for truth in [on, off] {
+            let f = e.iter().min_by_key(|f| f.i.abs_diff(truth)).unwrap();
+            assert!(f.i.abs_diff(truth) <= 1, "edge {} vs {truth}: {e:?}", f.i);
+            assert!(f.i.abs_diff(truth) as f64 * dt <= 2.0 * f.sd_s + dt, "{f:?} vs {truth}");
+            assert_eq!(f.channel, TORQUE);
+        }
+    }
+
+    /// A candidate on a flat stretch (no step either side) is dropped and
+    /// the real step kept.
+    #[test]
+    fn a_candidate_without_a_step_is_merged_away() {
+        let (n, m, dt) = (1000, 10, 1e-3);
+        let mut st = 0x2545_f491_4f6c_dd1du64;
+        let mut noise = || {
+            st ^= st << 13;
+            st ^= st >> 7;
+            st ^= st << 17;
+            (st as f64 / u64::MAX as f64 - 0.5) * 0.4
+        };
+        let raw: Vec<f64> = (0..n).map(|i| if i >= 600 { 4.0 } else { 0.0 } + noise()).collect();
+        let x = sg_smooth(&raw, m);
+        let s = Segment { t: (0..n).map(|i| i as f64 * dt).collect(), dt, sg_m: m, motion_weight: vec![1.0; n], ..Default::default() };
+        let r: [Option<Vec<f64>>; NCH] = std::array::from_fn(|c| (c == TORQUE).then(|| x.clone()));
+        let e = fit_edges(&s, &r, &[300, 603], 8.0, [0.0, 0.5], |c| c == TORQUE);
+        assert_eq!(e.iter().map(|f| f.i).collect::<Vec<_>>(), vec![600], "{e:?}");
+    }
+}
