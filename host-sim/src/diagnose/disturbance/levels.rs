@@ -73,7 +73,8 @@ fn gain(mode: Levels, s: &Segment, i: usize, c: usize, nominal: &Nominal) -> f64
 
 /// Cross-validated piecewise-constant prediction of the channels `chans`
 /// of one segment. Every interval between change points is cut into
-/// blocks of twice the smoothing window of alternating parity; the levels
+/// blocks of twice the smoothing window (halves, if shorter) of
+/// alternating parity; the levels
 /// of parity p (per channel, or one force for all channels) are fitted on
 /// parity-p samples only and form a signal over the whole segment, which
 /// predicts the samples of the other parity (smoothed where the channel's
@@ -100,7 +101,10 @@ pub fn cv_levels(
     let mut bounds = vec![0];
     bounds.extend(cps.iter().copied().filter(|i| *i > 0 && *i < n));
     bounds.push(n);
-    let parity = |a: usize, i: usize| ((i - a) / b) % 2;
+    // An interval shorter than two blocks (edges may sit a smoothing
+    // window apart) is cut in halves instead, so both parities hold data
+    // and each half is still predicted by the other.
+    let parity = |a: usize, e: usize, i: usize| ((i - a) / b.min(((e - a) / 2).max(1))) % 2;
     // Gains once per sample and channel.
     let g: Vec<Vec<f64>> = (0..NCH)
         .map(|c| {
@@ -133,7 +137,7 @@ pub fn cv_levels(
             let Some(x) = &r[c] else { continue };
             let wc = if mode == Levels::Force { w[c] } else { 1.0 };
             for i in a..e {
-                let p = parity(a, i);
+                let p = parity(a, e, i);
                 let ww = (wc * s.weight(c, i)).powi(2);
                 num[p][c] += ww * g[c][i] * x[i];
                 den[p][c] += ww * g[c][i] * g[c][i];
@@ -250,7 +254,7 @@ pub fn cv_levels(
         let mut out = vec![0.0; n];
         for iv in bounds.windows(2) {
             for (i, o) in out.iter_mut().enumerate().take(iv[1]).skip(iv[0]) {
-                *o = sm[1 - parity(iv[0], i)][i];
+                *o = sm[1 - parity(iv[0], iv[1], i)][i];
             }
         }
         Some(out)
