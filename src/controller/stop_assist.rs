@@ -64,7 +64,7 @@ impl Controller {
             }
         }
         let ramped = self.brake_periods.saturating_sub(engage);
-        if ramped >= 2 * engage {
+        if ramped >= engage.saturating_mul(2) {
             // The motor's share is gone and the rod stayed through one more
             // engage time without it: the brake holds alone.
             self.hold_current_q_a = super::expected_load_current_q_a(&self.params);
