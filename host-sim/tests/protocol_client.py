@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""An independent client of the drive protocol, written from docs/protocol.md
+"""An independent client of the drive protocol, written from docs/protocol-wire.md
 alone (standard library only, no project code): it starts the simulated
 drive, reads Info and Status, sets a parameter, streams 100 points and
 decodes a refusal. The parameter index and the reason names come from the
@@ -20,7 +20,7 @@ import time
 import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-DOC = os.path.join(ROOT, "docs", "protocol.md")
+DOC = os.path.join(ROOT, "docs", "protocol-wire.md")
 
 
 # ---- the document's tables -------------------------------------------------
@@ -29,11 +29,11 @@ def doc_tables():
     text = open(DOC, encoding="utf-8").read()
     params = {m.group(2): (int(m.group(1)), m.group(3)) for m in re.finditer(r"^\| (\d+) \| `(control\.[a-z0-9_.]+)` \| (\w+) \|$", text, re.M)}
     reasons = {}
-    sec = text[text.index("### Reason codes"):]
+    sec = text[text.index("## Reason codes"):]
     for m in re.finditer(r"^\| (\d+) \| ([A-Za-z0-9]+) \| (.*) \|$", sec, re.M):
         reasons.setdefault(int(m.group(1)), m.group(2))
     faults = {}
-    sec = text[text.index("### Fault bits"):]
+    sec = text[text.index("## Fault bits"):]
     for m in re.finditer(r"^\| (\d+) \| `([a-z_]+)` \|$", sec, re.M):
         faults[int(m.group(1))] = m.group(2)
     return params, reasons, faults

@@ -111,7 +111,7 @@ pub struct Prediction {
 /// friction that bends the drive train at rest and at a move start turns
 /// with the direction of the last move, which speed, displacement and force
 /// at rest do not tell). Chosen over the planned acceleration by measuring
-/// both (docs/observer.md, "A fifth input").
+/// both (docs/observer-figures.md, "A fifth input").
 pub const NETWORK_INPUTS: usize = 5;
 
 /// Names of the network's inputs (dataset columns), in order. A model

@@ -283,7 +283,7 @@ pub struct CompensationParams {
     /// reads the estimate. `true`: the estimate from the q current, with
     /// the rotating inertia, the viscous drag and the identified Coulomb
     /// friction taken out (`load_estimate`), even with a load cell fitted;
-    /// run it with a model trained on that input (docs/observer.md,
+    /// run it with a model trained on that input (docs/observer-retraining.md,
     /// "Without a load cell").
     #[serde(default)]
     pub force_from_estimate: bool,

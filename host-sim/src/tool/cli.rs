@@ -214,7 +214,7 @@ pub enum DriveCmd {
         #[arg(long, conflicts_with = "params")]
         family: Option<PathBuf>,
         /// With --family: choose each rig's torque filter by its own test
-        /// moves first (docs/tuning.md, "The torque filter per unit").
+        /// moves first (docs/tuning-family.md, "The torque filter per unit").
         #[arg(long, requires = "family")]
         tune_filter: bool,
     },

@@ -221,7 +221,7 @@ pub fn run_cli(args: &TrainArgs) -> Result<TrainReport> {
         // input, and uploads are checked against the input they were trained
         // on; compiled-in estimate weights would escape that check.
         bail!(
-            "--emit-core {}: {} was logged on the drive's force estimate (load_force_estimate_n); the compiled model is the load-cell model: upload these weights instead (docs/observer.md, \"Without a load cell\")",
+            "--emit-core {}: {} was logged on the drive's force estimate (load_force_estimate_n); the compiled model is the load-cell model: upload these weights instead (docs/observer-retraining.md, \"Without a load cell\")",
             p.display(),
             ds.path.display()
         );

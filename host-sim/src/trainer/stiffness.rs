@@ -6,7 +6,7 @@
 //! on the rig file's design, at the payload the hold current says, it gives
 //! the stiffness ratio and so the compliance ratio `c = k₀ / k`.
 //!
-//! The observer's deformation is static (docs/observer.md, "Where the rest
+//! The observer's deformation is static (docs/observer-figures.md, "Where the rest
 //! of the error is"), so weights trained at the design's stiffness scaled
 //! by `c` predict a softer or stiffer cylinder's deformation.
 //!

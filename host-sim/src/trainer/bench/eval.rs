@@ -2,7 +2,7 @@
 //! (0 → 450 mm with the tilt 90 → 60 → 90°, back with 90 → 120 → 90°,
 //! rated load of the rig) with the observer off and on. No retraining log
 //! and no shipped-weights training cycle has this trajectory
-//! (docs/observer.md, "Held out by trajectory"), so it is held out by
+//! (docs/observer-figures.md, "Held out by trajectory"), so it is held out by
 //! trajectory, and its sensor noise seed is one no training run used.
 
 use crate::config::RigConfig;

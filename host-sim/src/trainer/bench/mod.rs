@@ -30,7 +30,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 /// Noise seed of the evaluation run: never a training or logging seed
-/// (the held-out seed of the figures in docs/observer.md).
+/// (the held-out seed of the figures in docs/observer-figures.md).
 pub const EVAL_SEED: u64 = 6171;
 
 /// `host-sim observer-bench`.

@@ -5,7 +5,7 @@
 //! drive has its friction identified first, as for the shipped weights:
 //! the estimate takes that friction out of the motor torque. The bar is
 //! asked on the nominal rig; the model, how it is trained and why it is
-//! held out are `host-sim observer-no-load-cell` (docs/observer.md,
+//! held out are `host-sim observer-no-load-cell` (docs/observer-retraining.md,
 //! "Without a load cell").
 
 use super::eval::{evaluate, Row};
