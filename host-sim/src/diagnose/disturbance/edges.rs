@@ -80,8 +80,20 @@ pub(super) fn two_levels(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize,
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
+
+    /// Uniform noise of peak-to-peak `amp` from a fixed xorshift seed, so
+    /// the tests are deterministic.
+    pub(in crate::diagnose::disturbance) fn noise(seed: u64, amp: f64) -> impl FnMut() -> f64 {
+        let mut st = seed;
+        move || {
+            st ^= st << 13;
+            st ^= st >> 7;
+            st ^= st << 17;
+            (st as f64 / u64::MAX as f64 - 0.5) * amp
+        }
+    }
 
     /// The step response rises from 0 to 1 symmetrically about the half
     /// sample before the edge, as a symmetric filter's must, and is 1 from
@@ -104,13 +116,7 @@ mod tests {
         let m = 10;
         let n = 600;
         let edge = 317;
-        let mut st = 0x2545_f491_4f6c_dd1du64;
-        let mut noise = || {
-            st ^= st << 13;
-            st ^= st >> 7;
-            st ^= st << 17;
-            (st as f64 / u64::MAX as f64 - 0.5) * 0.2
-        };
+        let mut noise = noise(0x2545_f491_4f6c_dd1d, 0.2);
         let raw: Vec<f64> = (0..n).map(|i| if i >= edge { 1.0 } else { 0.0 } + noise()).collect();
         let x = sg_smooth(&raw, m);
         let wt = vec![1.0; n];

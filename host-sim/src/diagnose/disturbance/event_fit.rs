@@ -207,6 +207,7 @@ fn edge_sd(ch: &Chan, e: &[usize], j: usize, (lo, hi): (usize, usize), m: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+    use super::super::edges::tests::noise;
     use crate::diagnose::residual::sg_smooth;
 
     /// A 120 ms pulse on the smoothed torque channel, its onset 25 ms
@@ -219,13 +220,7 @@ mod tests {
     fn an_edge_beside_a_transient_pick_is_placed_at_its_step() {
         let (n, m, dt) = (1200, 10, 1e-3);
         let (on, off, blip) = (500, 620, 475);
-        let mut st = 0x9e37_79b9_7f4a_7c15u64;
-        let mut noise = || {
-            st ^= st << 13;
-            st ^= st >> 7;
-            st ^= st << 17;
-            (st as f64 / u64::MAX as f64 - 0.5) * 0.4
-        };
+        let mut noise = noise(0x9e37_79b9_7f4a_7c15, 0.4);
         let raw: Vec<f64> = (0..n)
             .map(|i| {
                 let pulse = if (on..off).contains(&i) { 5.0 } else { 0.0 };
@@ -251,13 +246,7 @@ mod tests {
     #[test]
     fn a_candidate_without_a_step_is_merged_away() {
         let (n, m, dt) = (1000, 10, 1e-3);
-        let mut st = 0x2545_f491_4f6c_dd1du64;
-        let mut noise = || {
-            st ^= st << 13;
-            st ^= st >> 7;
-            st ^= st << 17;
-            (st as f64 / u64::MAX as f64 - 0.5) * 0.4
-        };
+        let mut noise = noise(0x2545_f491_4f6c_dd1d, 0.4);
         let raw: Vec<f64> = (0..n).map(|i| if i >= 600 { 4.0 } else { 0.0 } + noise()).collect();
         let x = sg_smooth(&raw, m);
         let s = Segment { t: (0..n).map(|i| i as f64 * dt).collect(), dt, sg_m: m, motion_weight: vec![1.0; n], ..Default::default() };
