@@ -89,6 +89,9 @@ enum Cmd {
     /// linear scale) into the trainer's dataset: runs and directions cut
     /// automatically, refused naming what a log lacks.
     DatasetFromLogs(host_sim::trainer::from_logs::FromLogsArgs),
+    /// The screw's lead from the drive's logs (strokes at two payloads or
+    /// more, a linear scale at the rod), for `drive_train.screw_lead_m`.
+    LeadFromLogs(host_sim::trainer::lead::LeadArgs),
     /// The retraining route timed end to end (logs → dataset → train →
     /// upload → verify on the simulated drive): summary.json.
     ObserverRoute(host_sim::trainer::route::RouteArgs),
@@ -263,6 +266,7 @@ fn main() -> Result<()> {
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
+        Cmd::LeadFromLogs(args) => host_sim::trainer::lead::run_cli(&args).map(|_| ()),
         Cmd::ObserverRoute(args) => host_sim::trainer::route::run(&args).map(|_| ()),
         Cmd::ObserverBench(args) => host_sim::trainer::bench::run(&args).map(|_| ()),
         Cmd::ObserverNoLoadCell(args) => host_sim::scenario::no_load_cell::run_cli(&args).map(|_| ()),

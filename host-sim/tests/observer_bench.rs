@@ -55,12 +55,15 @@ fn shipped_holds_on_nominal_and_retraining_learns_the_lead() {
     }
     assert_eq!(s[0].passed, Some(true), "shipped weights on the nominal rig: {:.1} % < 90 %", s[0].reduction_pct);
     // The lead error (75 µm at 450 mm) is not in the shipped weights: they
-    // leave it; retrained on the rig's logs, the network takes it in.
+    // leave it; the route fits the lead from the rig's logs and tells the
+    // drive, which then moves in the rod's metres.
     assert!(s[1].reduction_pct < 70.0, "{}", s[1].reduction_pct);
     assert!(r[1].reduction_pct > s[1].reduction_pct + 20.0, "retrained {:.1} % against shipped {:.1} %", r[1].reduction_pct, s[1].reduction_pct);
     // The friction was identified into the feedforward before logging.
     let ff = &r[0].details["route"]["friction_feedforward"]["param_set"];
     assert_eq!(ff.as_array().map(|a| a.len()), Some(2), "{ff}");
+    let lead = &r[1].details["route"]["lead"]["fit"]["scale_error"];
+    assert!((lead.as_f64().unwrap() - rigs::LEAD_ERROR_M_PER_M).abs() * 0.3e6 < 2.0, "fitted lead error {lead}");
     for row in &r {
         assert!(row.details["logged_motion_s"].as_f64().unwrap() <= retrained::MAX_LOGGED_MOTION_S);
     }

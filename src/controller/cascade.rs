@@ -58,6 +58,22 @@ impl Controller {
         self.current_period(s, rotor)
     }
 
+    /// [`Self::run_period`] with the q reference bounded by `q_cap_a` after
+    /// the speed loop: a hold handing its load to the brake lowers the
+    /// motor's share without touching the speed loop's state, so a slip
+    /// gets the whole of it back at once.
+    pub(super) fn run_period_capped(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool, q_cap_a: f32) -> PwmCommand {
+        if position_tick {
+            self.position_period(s);
+        }
+        if speed_tick {
+            self.speed_period();
+        }
+        self.current_reference.q = crate::math::clamp(self.current_reference.q, -q_cap_a, q_cap_a);
+        let rotor = self.rotor_state_inline();
+        self.current_period(s, rotor)
+    }
+
     /// The speed PI inside the q-current bounds of this instant.
     #[inline(never)]
     fn speed_period(&mut self) {

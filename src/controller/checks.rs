@@ -351,6 +351,11 @@ impl Controller {
             && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m;
         let stop_failed =
             matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
+        // The load is winning the stop and the motor is the stronger of the
+        // two: handing the load to the brake alone would let it slide, so
+        // the brake closes now and the loops push with it.
+        let stop_losing =
+            self.mode == Mode::Stopping && following > f.stop_following_error_m && self.params.brake.fitted && !brake_stronger;
         if matches!(self.mode, Mode::Running | Mode::Preloading) && homed {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();
@@ -379,6 +384,11 @@ impl Controller {
         // the load is winning. The brake must take it before the end stop.
         if stop_failed {
             self.raise(FaultSet::STOP_FAILED);
+        }
+        if stop_losing {
+            self.assist_stop_with_brake();
+        } else if self.stop_brake_assist {
+            self.anchor_assisted_stop();
         }
         present
     }

@@ -20,6 +20,7 @@ pub mod mode;
 mod params_apply;
 mod reactions;
 mod scope;
+mod stop_assist;
 
 pub use commands::{Command, CommandError, CommandOutcome};
 pub use params_apply::ApplyError;
@@ -163,6 +164,13 @@ pub struct Controller {
     /// PWM periods since the brake was told to open (Running, Stopping) or
     /// to close (Braking, once the stop ramp is at rest).
     brake_periods: u32,
+    /// A controlled stop the load was winning, with a brake weaker than the
+    /// motor: the brake closes under the loops, which go on holding
+    /// (`Braking`) until the load is one the brake holds alone.
+    stop_brake_assist: bool,
+    /// Under that assist: where the motor side was when the motor's share
+    /// of the hold began to ramp down (a slip is measured from here).
+    handover_anchor_m: f32,
     open_phase: OpenPhaseMonitor,
     /// From enable to the first settle: does the torque make the motion?
     torque_watch: crate::protection::TorqueWatch,
@@ -325,6 +333,8 @@ impl Controller {
             torque_watch: crate::protection::TorqueWatch::new(),
             open_phase_present: false,
             brake_periods: 0,
+            stop_brake_assist: false,
+            handover_anchor_m: 0.0,
             hold_current_q_a: expected_load_current_q_a(&params),
             short_circuit_periods: 0,
             bus_voltage_v: 0.0,

@@ -65,6 +65,9 @@ impl Controller {
     /// `Enable`'s preload.
     #[inline(never)]
     pub(super) fn braking_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
+        if self.stop_brake_assist {
+            return self.assisted_braking_period(s, position_tick, speed_tick);
+        }
         if self.stop.at_rest() {
             self.brake_periods = self.brake_periods.saturating_add(1);
         }
@@ -111,6 +114,7 @@ impl Controller {
             self.params.encoder.electrical_offset_rad = self.torque_watch.end_turn();
         }
         self.hold_here();
+        self.stop_brake_assist = false;
         self.stream.stop();
         self.reset_loops();
         // No current flows with the bridge off: the I²t model cools.

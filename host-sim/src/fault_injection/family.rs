@@ -23,6 +23,8 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, out: &Path) -> Result
             ("stall_rod_speed_after_latch_m_s", Worst::Max),
             ("stall_rod_speed_after_latch_over_impact", Worst::Max),
             ("stall_travel_after_latch_mm", Worst::Max),
+            ("load_beyond_rating_travel_after_latch_mm", Worst::Max),
+            ("load_beyond_rating_detection_periods", Worst::Max),
             ("stroke_excess_max_mm", Worst::Max),
             ("peak_current_after_fault_max_a", Worst::Max),
         ],
@@ -35,6 +37,7 @@ pub fn run_family(family: &[FamilyRig], family_dir: &Path, out: &Path) -> Result
 fn row(rig: &str, s: &[ScenarioSummary]) -> RigRow {
     let failed: Vec<String> = s.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.violations.join(", "))).collect();
     let stall = s.iter().find(|r| r.name == "stall");
+    let beyond = s.iter().find(|r| r.name == "load_beyond_rating");
     let max = |f: &dyn Fn(&ScenarioSummary) -> f64| s.iter().map(f).fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))));
     RigRow {
         rig: rig.to_string(),
@@ -49,6 +52,8 @@ fn row(rig: &str, s: &[ScenarioSummary]) -> RigRow {
                 stall.and_then(|r| Some(r.rod_speed_after_latch_max_m_s? / r.impact_speed_m_s?)),
             ),
             ("stall_travel_after_latch_mm".into(), stall.and_then(|r| r.travel_after_latch_mm).map(f64::abs)),
+            ("load_beyond_rating_travel_after_latch_mm".into(), beyond.and_then(|r| r.excursion_after_latch_mm)),
+            ("load_beyond_rating_detection_periods".into(), beyond.and_then(|r| r.detection_periods).map(|n| n as f64)),
             ("stroke_excess_max_mm".into(), max(&|r| r.stroke_excess_mm)),
             ("peak_current_after_fault_max_a".into(), max(&|r| r.peak_current_after_fault_a)),
         ],

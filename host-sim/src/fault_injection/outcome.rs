@@ -5,6 +5,13 @@ use super::scenario::Expect;
 use anyhow::Result;
 use servo_core::{Command, CommandError, CommandOutcome, FaultSet, LimitFlags, Mode};
 
+/// A motor side slower than this at the end of a run is at rest (creep on
+/// the brake or in the loops' hold is far below it; a load still winning
+/// is tens of mm/s and more).
+const END_REST_SPEED_M_S: f64 = 0.002;
+/// The window at the end of a run judged for rest.
+const END_REST_WINDOW_S: f64 = 0.05;
+
 /// One PWM period of the record.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct PeriodRecord {
@@ -129,6 +136,32 @@ impl Outcome {
         (lo - worst_lo).max(worst_hi - hi).max(0.0)
     }
 
+    /// The farthest the motor side got from where it was at the latch.
+    pub fn excursion_after_latch_m(&self) -> Option<f64> {
+        let latch = self.latch_period? as usize;
+        let x0 = self.records.get(latch)?.motor_side_position_m;
+        Some(self.records[latch..].iter().map(|r| (r.motor_side_position_m - x0).abs()).fold(0.0, f64::max))
+    }
+
+    /// Why the run does not end at rest, held by the loops or on the brake
+    /// with the bridge off (`None`: it does). At rest: the motor side (what
+    /// the loops or the brake hold) moved less than `END_REST_SPEED_M_S`
+    /// times `END_REST_WINDOW_S` over the run's last window; a heavy payload
+    /// may still ring on the structure's compliance above a held motor side.
+    pub fn not_at_rest_at_end(&self) -> Option<String> {
+        let last = self.records.last()?;
+        let from = last.time_s - END_REST_WINDOW_S;
+        let window = self.records.iter().rev().take_while(|r| r.time_s >= from).map(|r| r.motor_side_position_m);
+        let (lo, hi) = window.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)));
+        if hi - lo > END_REST_SPEED_M_S * END_REST_WINDOW_S {
+            return Some(format!("motor side still moving at the end ({:.2} mm over the last {:.0} ms)", (hi - lo) * 1e3, END_REST_WINDOW_S * 1e3));
+        }
+        match (last.mode, last.bridge_on) {
+            (Mode::Stopping, true) | (Mode::Fault | Mode::Disabled, false) => None,
+            (m, on) => Some(format!("ends in {m:?} with the bridge {}, neither held nor on the brake", if on { "on" } else { "off" })),
+        }
+    }
+
     /// The rules of `expect` this run broke, in words (empty: all kept).
     pub fn violations(&self, e: &Expect) -> Vec<String> {
         let mut v = vec![];
@@ -175,6 +208,16 @@ impl Outcome {
         if let (Some(bound), Some(v_max)) = (e.rod_speed_after_latch_max_m_s, self.rod_speed_after_latch_max_m_s) {
             if v_max > bound {
                 v.push(format!("rod reached {v_max:.3} m/s after the latch, bound {bound} m/s"));
+            }
+        }
+        if let (Some(bound), Some(travel)) = (e.travel_after_latch_max_m, self.excursion_after_latch_m()) {
+            if travel > bound {
+                v.push(format!("motor side travelled {:.2} mm from where it was at the latch, bound {:.2} mm", travel * 1e3, bound * 1e3));
+            }
+        }
+        if e.ends_at_rest {
+            if let Some(why) = self.not_at_rest_at_end() {
+                v.push(why);
             }
         }
         if e.rod_no_faster_than_impact {

@@ -38,6 +38,8 @@ pub struct ScenarioSummary {
     pub motor_side_range_m: (f64, f64),
     pub rod_range_m: (f64, f64),
     pub travel_after_latch_mm: Option<f64>,
+    /// The farthest the motor side got from where it was at the latch.
+    pub excursion_after_latch_mm: Option<f64>,
     pub rod_speed_after_latch_max_m_s: Option<f64>,
     /// The rod's speed when it met an obstacle (the stall's bound after the latch).
     pub impact_speed_m_s: Option<f64>,
@@ -77,6 +79,7 @@ pub fn summarize(sc: &Scenario, o: &Outcome) -> ScenarioSummary {
         motor_side_range_m: o.motor_side_range_m,
         rod_range_m: o.rod_range_m,
         travel_after_latch_mm: o.travel_after_latch_m.map(|x| x * 1e3),
+        excursion_after_latch_mm: o.excursion_after_latch_m().map(|x| x * 1e3),
         rod_speed_after_latch_max_m_s: o.rod_speed_after_latch_max_m_s,
         impact_speed_m_s: o.impact_speed_m_s,
         rod_speed_end_m_s: o.rod_speed_end_m_s,

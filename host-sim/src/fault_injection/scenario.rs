@@ -66,10 +66,18 @@ pub struct Expect {
     /// The rod's speed after the latch stays below this (a controlled stop
     /// must not let the load run); `None`: not judged.
     pub rod_speed_after_latch_max_m_s: Option<f64>,
+    /// The motor side never gets further than this from where it was at the
+    /// latch (a stop that holds, or hands a load it cannot hold to the brake
+    /// in time); `None`: not judged.
+    pub travel_after_latch_max_m: Option<f64>,
     /// After the latch the rod is never faster than it struck an obstacle
     /// (`Outcome::impact_speed_m_s`): it rings on the contact, fed by the
     /// impact and decaying; faster means it is driven or falling.
     pub rod_no_faster_than_impact: bool,
+    /// The run ends with the rod at rest, either held by the loops
+    /// (`Stopping`) or on the brake with the bridge off (`Fault`,
+    /// `Disabled`): a stop that ends, not one still losing to the load.
+    pub ends_at_rest: bool,
 }
 
 /// A named fault scenario.

@@ -134,15 +134,15 @@ fn column(header: &csv::StringRecord, names: &[&str], path: &Path, what: &str) -
     })
 }
 
-struct Row {
-    line: u64,
-    t: f64,
-    motor_m: f64,
-    speed_rad_s: f64,
-    terminal_m: f64,
-    force_n: f64,
+pub(super) struct Row {
+    pub(super) line: u64,
+    pub(super) t: f64,
+    pub(super) motor_m: f64,
+    pub(super) speed_rad_s: f64,
+    pub(super) terminal_m: f64,
+    pub(super) force_n: f64,
     /// The direction of travel, if the log gives it.
-    travel: Option<f64>,
+    pub(super) travel: Option<f64>,
 }
 
 /// The sign of `d`, or `held` where it is 0.
@@ -156,7 +156,7 @@ fn sign_or(d: f64, held: f64) -> f64 {
     }
 }
 
-fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)> {
+pub(super) fn read_log(path: &Path, summary: &mut LogSummary) -> Result<(Vec<Row>, String)> {
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_path(path).with_context(|| format!("opening {}", path.display()))?;
     let header = rdr.headers().with_context(|| format!("{} line 1: reading the header", path.display()))?.clone();
     let c_t = column(&header, &["time_s"], path, "the time")?;
@@ -335,8 +335,8 @@ fn cut_runs(path: &Path, rows: &[Row], o: &LogOptions, summary: &mut LogSummary)
     runs
 }
 
-/// The dataset of `logs`, checked for what the model needs.
-pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)> {
+/// The CSV files of `logs`: files as given, folders' `.csv` files sorted.
+pub(super) fn log_files(logs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     if logs.is_empty() {
         bail!("no log given");
     }
@@ -359,6 +359,12 @@ pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)
             bail!("log {} does not exist", p.display());
         }
     }
+    Ok(files)
+}
+
+/// The dataset of `logs`, checked for what the model needs.
+pub fn convert(logs: &[PathBuf], o: &LogOptions) -> Result<(Dataset, LogSummary)> {
+    let files = log_files(logs)?;
     let mut s = LogSummary { load_range_needed_n: o.load_range_n, load_force_min_n: f64::INFINITY, load_force_max_n: f64::NEG_INFINITY, ..LogSummary::default() };
     let mut runs = Vec::new();
     let mut force_cols = Vec::new();

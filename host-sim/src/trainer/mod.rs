@@ -16,6 +16,7 @@ pub mod codegen;
 pub mod dataset;
 pub mod evaluate;
 pub mod from_logs;
+pub mod lead;
 pub mod log_moves;
 pub mod route;
 pub mod stiffness;

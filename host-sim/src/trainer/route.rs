@@ -1,6 +1,7 @@
 //! The whole retraining route as a user walks it, timed: the rig's
 //! friction identified and written into the drive's friction feedforward
-//! (docs/tuning.md), logs from the simulated drive at three payloads →
+//! (docs/tuning.md), the screw's lead fitted from short logs at three
+//! payloads and written into the drive's lead, logs at three payloads →
 //! `dataset-from-logs` → `train
 //! --hidden 8` → upload to a simulated drive over TCP → verify (the drive
 //! runs the file's words, a restarted drive runs them from its store, and a
@@ -35,6 +36,10 @@ pub struct RouteArgs {
     /// identifying the friction first.
     #[arg(long)]
     pub keep_friction: bool,
+    /// Log with the lead as the rig file has it, instead of fitting the
+    /// screw's lead from the logs first.
+    #[arg(long)]
+    pub keep_lead: bool,
 }
 
 /// The bar: the whole route within 2 minutes on this machine.
@@ -93,11 +98,16 @@ pub struct RoutePlan {
     pub seed: u64,
     /// Identify the friction and write it into the feedforward before logging.
     pub identify_friction: bool,
+    /// Fit the screw's lead from short logs and write it into the drive's
+    /// lead before the training logs.
+    pub identify_lead: bool,
+    /// Stroke cycles per payload of the lead's logs.
+    pub lead_cycles: usize,
 }
 
 impl RoutePlan {
     pub fn new(cycles: usize) -> Self {
-        Self { cycles, payloads: vec![0.02, 0.5, 1.0], seed: 20, identify_friction: true }
+        Self { cycles, payloads: vec![0.02, 0.5, 1.0], seed: 20, identify_friction: true, identify_lead: true, lead_cycles: 2 }
     }
 }
 
@@ -108,6 +118,7 @@ pub struct RouteOutcome {
     pub weights: &'static servo_core::observer::block::Weights,
     pub rig: RigConfig,
     pub logged_s: f64,
+    /// Motion in the training logs, and at most this in the lead's (s).
     pub moving_s: f64,
     pub total_s: f64,
 }
@@ -131,10 +142,32 @@ pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteO
         (rig.clone(), serde_json::Value::Null)
     };
     let identify_s = t.elapsed().as_secs_f64();
+    // 1a. The lead, from its own short logs: every later log, the dataset
+    // and the weights are then in the rod's metres.
+    let t = Instant::now();
+    let mut logged_s = 0.0;
+    let (rig, lead) = if plan.identify_lead {
+        let mut lead_logs = Vec::new();
+        for (k, &p) in plan.payloads.iter().enumerate() {
+            let path = out.join("logs_lead").join(format!("payload_{k}.csv"));
+            logged_s += record(&rig, &LogPlan::strokes(p, plan.lead_cycles, plan.seed + 101 + k as u64), &path)?;
+            lead_logs.push(path);
+        }
+        let before = rig.control.drive_train.screw_lead_m;
+        let fit = super::lead::fit(&lead_logs, f64::from(before)).context("fitting the screw's lead from logs_lead/")?;
+        let mut tuned = rig;
+        tuned.control.drive_train.screw_lead_m = fit.lead_m as f32;
+        tuned.control.validate().map_err(|e| anyhow!("the fitted lead does not validate: {e:?}"))?;
+        let note = serde_json::json!({ "fit": fit, "param_set": [{ "name": "drive_train.screw_lead_m", "before": before, "after": tuned.control.drive_train.screw_lead_m }] });
+        (tuned, note)
+    } else {
+        (rig, serde_json::Value::Null)
+    };
+    let lead_logged_s = logged_s;
+    let lead_s = t.elapsed().as_secs_f64();
     // 1. Logs, as a user records them at each payload.
     let t = Instant::now();
     let mut logs = Vec::new();
-    let mut logged_s = 0.0;
     for (k, &p) in plan.payloads.iter().enumerate() {
         let path = out.join("logs").join(format!("payload_{k}.csv"));
         logged_s += record(&rig, &LogPlan::strokes(p, plan.cycles, plan.seed + 1 + k as u64), &path)?;
@@ -193,11 +226,13 @@ pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteO
     let total_s = t_all.elapsed().as_secs_f64();
     let summary = serde_json::json!({
         "command": "host-sim observer-route",
-        "stages_s": { "identify_friction": identify_s, "log": log_s, "dataset": dataset_s, "train": train_s, "upload": upload_s, "verify": verify_s },
+        "stages_s": { "identify_friction": identify_s, "lead": lead_s, "log": log_s, "dataset": dataset_s, "train": train_s, "upload": upload_s, "verify": verify_s },
         "total_s": total_s,
         "bar_s": BAR_S,
         "within_bar": total_s <= BAR_S,
         "friction_feedforward": friction,
+        "lead": lead,
+        "lead_logged_drive_time_s": lead_logged_s,
         "logged_drive_time_s": logged_s,
         "payload_scales": plan.payloads,
         "dataset": { "runs_elongation": ls.runs_elongation, "runs_contraction": ls.runs_contraction, "samples": ls.samples,
@@ -210,7 +245,7 @@ pub fn run_route(rig: &RigConfig, plan: &RoutePlan, out: &Path) -> Result<RouteO
             "reduction_pct": 100.0 * (1.0 - on / off),
         },
     });
-    Ok(RouteOutcome { summary, weights: running, rig, logged_s, moving_s: ls.moving_s, total_s })
+    Ok(RouteOutcome { summary, weights: running, rig, logged_s, moving_s: ls.moving_s + lead_logged_s, total_s })
 }
 
 /// Runs the route; writes `out/summary.json`.
@@ -218,6 +253,7 @@ pub fn run(a: &RouteArgs) -> Result<serde_json::Value> {
     let rig = RigConfig::load_or_nominal(a.params.as_ref())?;
     let mut plan = RoutePlan::new(a.cycles);
     plan.identify_friction = !a.keep_friction;
+    plan.identify_lead = !a.keep_lead;
     let r = run_route(&rig, &plan, &a.out)?;
     std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&r.summary)?)?;
     println!("{}", serde_json::to_string_pretty(&r.summary)?);

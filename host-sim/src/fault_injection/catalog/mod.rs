@@ -56,7 +56,9 @@ fn expect(faults: FaultSet, reaction: Mode, within_periods: u64) -> Expect {
         current_margin_a: CURRENT_MARGIN_A,
         stroke_margin_m: STROKE_MARGIN_M,
         rod_speed_after_latch_max_m_s: None,
+        travel_after_latch_max_m: None,
         rod_no_faster_than_impact: false,
+        ends_at_rest: false,
     }
 }
 
@@ -68,7 +70,9 @@ fn ride_through() -> Expect {
         current_margin_a: CURRENT_MARGIN_A,
         stroke_margin_m: STROKE_MARGIN_M,
         rod_speed_after_latch_max_m_s: None,
+        travel_after_latch_max_m: None,
         rod_no_faster_than_impact: false,
+        ends_at_rest: false,
     }
 }
 

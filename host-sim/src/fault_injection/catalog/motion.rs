@@ -17,19 +17,51 @@ pub fn load_spike(rig: &RigConfig) -> Scenario {
     }
 }
 
-/// +4 kN for 200 ms (3.9× rated in all): beyond the drive's peak thrust.
+/// The cylinder's rated thrust (the paper's Table 1), newtons.
+pub const RATED_THRUST_N: f64 = 1380.0;
+
+/// The load `load_beyond_rating` puts on the rod in all, in rated thrusts.
+pub const BEYOND_RATING_TOTAL: f64 = 3.9;
+
+/// The push `load_beyond_rating` adds to the rig's own weight: +4 kN, and on
+/// a rig lighter than rated the weight it lacks on top, so that the rod
+/// carries 3.9× the rated thrust in all on every rig. The scenario states a
+/// load relative to the rating: +4 kN alone on a near-empty rod (7.2 kg
+/// moving, 2.9× rated in all) is less than the drive holds against
+/// back-driving (≈ 4.8 kN), not a load beyond the rating. A heavier rig
+/// keeps the 4 kN (3.9× or more in all).
+pub fn beyond_rating_push_n(rig: &RigConfig) -> f64 {
+    let p = &rig.plant;
+    let weight_n = p.moving_mass_kg() * p.load.gravity_m_s2 * Setup::nominal(rig).tilt_deg.to_radians().sin();
+    (BEYOND_RATING_TOTAL * RATED_THRUST_N - weight_n).max(4000.0)
+}
+
+/// 3.9× the rated thrust in all for 200 ms (+4 kN on the rated payload,
+/// the weight a lighter rod lacks made up): beyond the drive's peak thrust.
 pub fn load_beyond_rating(rig: &RigConfig) -> Scenario {
     Scenario {
         name: "load_beyond_rating",
-        what: "+4 kN load for 200 ms (3.9× rated thrust in all) while moving",
+        what: "3.9× rated thrust in all for 200 ms (+4 kN on the rated payload) while moving",
         setup: base(rig),
-        injections: vec![during(FAULT_AT_S, FAULT_AT_S + 0.2, Injection::ExternalForce { newtons: 4000.0 })],
+        injections: vec![during(FAULT_AT_S, FAULT_AT_S + 0.2, Injection::ExternalForce { newtons: beyond_rating_push_n(rig) })],
         commands: moving(),
         duration_s: 1.0,
         fault_at_s: None,
-        expect: expect(FaultSet::POSITION_FOLLOWING, Mode::Stopping, 1000),
+        // Beyond the rating neither the motor nor (on a light rod) the brake
+        // holds the load alone; together they do. The rod moves while the
+        // stop strays its 3 mm and the brake closes under the loops (≈ 0.2
+        // m/s over its 30 ms), then stays: bounded at 15 mm from where it
+        // was at the latch, and the run ends at rest, held or on the brake.
+        expect: Expect {
+            travel_after_latch_max_m: Some(BEYOND_RATING_TRAVEL_MAX_M),
+            ends_at_rest: true,
+            ..expect(FaultSet::POSITION_FOLLOWING, Mode::Stopping, 1000)
+        },
     }
 }
+
+/// How far the rod may go after `load_beyond_rating` latched, metres.
+pub const BEYOND_RATING_TRAVEL_MAX_M: f64 = 0.015;
 
 /// The rod runs into a rigid obstacle 20 mm ahead during a move (a
 /// collision, a jammed guide): 20 N/µm, steel structure class.
