@@ -56,6 +56,13 @@ struct Outcome {
     level_err_pct: Option<f64>,
     timing_err_ms: Option<f64>,
     edges_within_5ms_pct: Option<f64>,
+    /// The fitted events (onset, offset, level from the baseline, each
+    /// with its 1-sigma) beside the true ones (start s, end s, level N),
+    /// and the share of true edges within 2 sigma of the nearest fitted
+    /// edge (whether the stated uncertainties hold).
+    events: Vec<host_sim::diagnose::disturbance::Event>,
+    true_events: Vec<[f64; 3]>,
+    edges_within_2sd_pct: Option<f64>,
     disturbance_primary_pct: Option<f64>,
     /// The most any estimate of the force could remove of the primary
     /// channel's held-out gap: the same held-out experiment run without
@@ -136,6 +143,19 @@ fn score_events(d: &DisturbanceFit, events: &[[f64; 3]]) -> (Option<f64>, Option
     (level, errs.get(errs.len() / 2).copied(), within)
 }
 
+/// Share of true edges (before the log's last 50 ms) within twice the
+/// stated 1-sigma of the nearest fitted edge, %.
+fn edges_within_2sd(d: &DisturbanceFit, events: &[[f64; 3]]) -> Option<f64> {
+    let fitted: Vec<(f64, f64)> = d.intervals.iter().filter_map(|iv| Some((iv.start_s, iv.start_sd_s?))).collect();
+    let hits: Vec<bool> = events
+        .iter()
+        .flat_map(|e| [e[0], e[1]])
+        .filter(|t| *t < 7.95)
+        .filter_map(|t| fitted.iter().min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs())).map(|(c, sd)| (c - t).abs() <= 2.0 * sd))
+        .collect();
+    (!hits.is_empty()).then(|| 100.0 * hits.iter().filter(|h| **h).count() as f64 / hits.len() as f64)
+}
+
 fn physics(rig: &host_sim::config::RigConfig) -> Nominal {
     Nominal::Physics(Physics::from_rig(rig))
 }
@@ -162,6 +182,9 @@ fn run_case(spec: Spec) -> Outcome {
             o.level_err_pct = lv.map(|l| 100.0 * (l - truth).abs() / truth.abs());
             o.timing_err_ms = te;
             o.edges_within_5ms_pct = w5;
+            o.events = d.events.clone();
+            o.true_events = g.events.clone();
+            o.edges_within_2sd_pct = edges_within_2sd(d, &g.events);
             o.disturbance_primary_pct = Some(d.primary_shrink_pct);
             o.disturbance_locked = Some(d.locked_to_signals);
         }

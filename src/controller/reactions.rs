@@ -61,7 +61,7 @@ impl Controller {
     }
 
     /// `Braking`: the loops hold while the brake closes, then the bridge
-    /// goes off. The q current holding at that moment is kept for the next
+    /// goes off. The load held at that moment is kept as the next
     /// `Enable`'s preload.
     #[inline(never)]
     pub(super) fn braking_period(&mut self, s: &SensorSample, position_tick: bool, speed_tick: bool) -> PwmCommand {
@@ -72,8 +72,25 @@ impl Controller {
             self.brake_periods = self.brake_periods.saturating_add(1);
         }
         if self.brake_periods > self.derived.brake_engage_periods {
-            if self.current_reference.q.is_finite() {
-                self.hold_current_q_a = self.current_reference.q;
+            // The preload is what held the load. At rest any torque within
+            // the friction band around the low-passed load estimate holds,
+            // so a quiet hold's own q current stands. One outside it is not
+            // a static hold but a sample of a swing: a hold that still rings
+            // (the rod's axial mode, ±30 A at 90 Hz on a light rod near the
+            // retracted end after homing). Then the load estimate is the
+            // preload: one that far from the load leaves the brake carrying
+            // the difference until it lets go, and the rod sags until the
+            // loops catch it.
+            let slow_n = self.load.slow_force_n();
+            let kt = self.params.torque_constant_n_m_a();
+            let load_a = slow_n * self.params.metres_per_rad() / kt;
+            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / kt;
+            let q = self.current_reference.q;
+            let held = if (q - load_a).abs() <= band_a { q } else { load_a };
+            if held.is_finite() {
+                self.hold_current_q_a = held;
+            } else if q.is_finite() {
+                self.hold_current_q_a = q;
             }
             self.set_mode(if self.faults.is_empty() { Mode::Disabled } else { Mode::Fault });
             return self.bridge_off();

@@ -14,11 +14,14 @@
 //! are what the effect reports); that leaks their positions, not levels.
 
 pub mod edges;
+pub mod event_fit;
 mod levels;
 mod motion;
+pub mod pulses;
 
 pub use levels::Levels;
 pub use motion::FOLLOWS_MIN_PCT;
+pub use pulses::Event;
 
 use super::events::{self, Remainder};
 use super::figures::shrink;
@@ -75,6 +78,10 @@ pub struct DisturbanceFit {
     /// Every held-out interval between change points with its level (in
     /// `level_unit`): the disturbance's time course.
     pub intervals: Vec<Interval>,
+    /// The events: each departure of the levels from the level the log
+    /// spends most of its time at, with its onset, offset and level (in
+    /// `level_unit`, from that baseline) and their uncertainties.
+    pub events: Vec<Event>,
     /// Where it acts: an external force on the rod, or the actuator input
     /// (the motor's torque or current), as far as the channels tell.
     pub side: String,
@@ -132,6 +139,10 @@ pub struct Interval {
     pub start_s: f64,
     pub end_s: f64,
     pub level: f64,
+    /// 1-sigma uncertainty of `start_s` (the fitted edge; `None` at a
+    /// segment's start) and of `level` (`None`: too short to tell).
+    pub start_sd_s: Option<f64>,
+    pub level_sd: Option<f64>,
 }
 
 /// Change points of a segment, each with the weighted residual energy it
@@ -188,11 +199,12 @@ pub fn predict(
     w: &[f64; NCH],
 ) -> (Remainder, Vec<Steps>, Vec<Interval>) {
     let floor = [0.0, DETECT_WEIGHT_FLOOR];
-    let cps: Vec<Vec<usize>> = events::detect_floor(segs, rem, k, floor)
+    let fitted: Vec<Vec<event_fit::Edge>> = events::detect_floor(segs, rem, k, floor)
         .iter()
         .zip(segs.iter().zip(rem))
-        .map(|(cp, (s, r))| edges::refine(s, r, cp, k, floor, smoothed))
+        .map(|(cp, (s, r))| event_fit::fit_edges(s, r, cp, k, floor, smoothed))
         .collect();
+    let cps: Vec<Vec<usize>> = fitted.iter().map(|v| v.iter().map(|e| e.i).collect()).collect();
     let chans: Vec<usize> = [TORQUE, POSITION]
         .into_iter()
         .filter(|c| use_ch[*c])
@@ -202,15 +214,17 @@ pub fn predict(
     let pred = segs
         .iter()
         .zip(rem)
-        .zip(&cps)
-        .map(|((s, r), cp)| {
+        .zip(cps.iter().zip(&fitted))
+        .map(|((s, r), (cp, edges))| {
             let (p, lv, st) = cv_levels(s, r, &chans, cp, mode, nominal, w);
-            levels.extend(lv.into_iter().map(|(c, a, e, l)| Interval {
-                channel: c,
+            levels.extend(lv.into_iter().map(|f| Interval {
+                channel: f.channel,
                 run: s.run,
-                start_s: s.t[a],
-                end_s: s.t[e - 1] + s.dt,
-                level: l,
+                start_s: s.t[f.start],
+                end_s: s.t[f.end - 1] + s.dt,
+                level: f.level,
+                start_sd_s: edges.iter().find(|e| e.i == f.start).map(|e| e.sd_s),
+                level_sd: f.sd,
             }));
             // Change points with no channel in use still count (zero weight).
             steps.push(if chans.is_empty() {
@@ -316,6 +330,7 @@ pub fn fit(
         .filter(|l| Some(l.channel) == level_ch)
         .map(|l| Interval {
             level: l.level * scale,
+            level_sd: l.level_sd.map(|v| v * scale.abs()),
             ..l.clone()
         })
         .collect();
@@ -354,6 +369,7 @@ pub fn fit(
             .collect(),
         mean_interval_s: dur / (n_cp + held.len()).max(1) as f64,
         level_unit: unit.into(),
+        events: pulses::events(&intervals),
         intervals,
         side: match (nominal, mode) {
             (_, _) if used.is_empty() => "nothing (the levels helped no channel on training)".into(),

@@ -338,6 +338,9 @@ fn markdown(d: &Diagnosis) -> String {
                     .join(" ")
             );
         }
+        if !dz.events.is_empty() {
+            let _ = writeln!(m, "{}", super::disturbance::pulses::table(&dz.events, &dz.level_unit));
+        }
     }
     if !s.time_structure.is_empty() {
         let _ = writeln!(

@@ -1,25 +1,19 @@
-//! Event edges at the sample rate. The step detector finds a change point
-//! as the peak of a two-window statistic over ± 50 ms windows: robust
-//! against the floor, but its peak is flat over a few samples and moves
-//! when the standstill fade or a neighbouring edge weighs one window less
-//! than the other. An event's onset and offset are what a user lines up
-//! with their rig's own records, so each change point is re-placed by
-//! least squares on the residual around it: one level either side (up to
-//! the neighbouring change points), the step shaped as the channel shows
-//! one — the Savitzky–Golay step response where the residual is smoothed
-//! (the torque channel), a sharp step where it is raw — and the edge put
-//! at the sample that leaves the least weighted residual.
-//!
-//! The channel is the torque channel wherever the step shows there above
-//! the detector's threshold, else the one whose step statistic is the
-//! largest in its robust sigmas: a force on the rod reaches the torque
-//! residual at once (the rod's inertia is the scale's, so the residual is
-//! the force itself), the position channel only as the drive train winds
-//! up — a rise over half the axial mode's period, whose middle lies a
-//! quarter period (≈ 8 ms at 30 Hz) after the force's edge.
+//! Event edges at the sample rate: the shape a step takes on a channel
+//! and the least-squares fit of one edge between two levels. The step
+//! detector finds a change point as the peak of a two-window statistic
+//! over ± 50 ms windows: robust against the floor, but its peak is flat
+//! over a few samples and moves when the standstill fade or a
+//! neighbouring edge weighs one window less than the other. An event's
+//! onset and offset are what a user lines up with their rig's own
+//! records, so each edge is placed by least squares on the residual
+//! around it (`event_fit`): one level either side, the step shaped as the
+//! channel shows one — the Savitzky–Golay step response where the
+//! residual is smoothed (the torque channel), a sharp step where it is
+//! raw — and the edge put at the sample that leaves the least weighted
+//! residual.
 
-use crate::diagnose::events::{robust_sigma, step_stat, weights, STEP_WINDOW_S};
-use crate::diagnose::residual::{sg_smooth, Segment, NCH, TORQUE};
+use crate::diagnose::events::STEP_WINDOW_S;
+use crate::diagnose::residual::sg_smooth;
 
 /// Each edge is searched within ± this of the detected change point, s:
 /// the detector's half window, inside which its peak can sit.
@@ -31,7 +25,7 @@ pub const CONTEXT_S: f64 = 2.0 * STEP_WINDOW_S;
 /// Response of the ±m Savitzky–Golay smoothing to a unit step whose first
 /// sample is the edge, by distance `d` from it: `h[d + m]` for
 /// `d ∈ [−m, m]` (0 before, 1 after).
-fn step_response(m: usize) -> Vec<f64> {
+pub(super) fn step_response(m: usize) -> Vec<f64> {
     let n = 4 * m + 2;
     let unit: Vec<f64> = (0..n).map(|i| if i >= 2 * m + 1 { 1.0 } else { 0.0 }).collect();
     let sm = sg_smooth(&unit, m);
@@ -39,7 +33,7 @@ fn step_response(m: usize) -> Vec<f64> {
 }
 
 /// The share of a step at `edge` seen at sample `i` (`h`: `step_response`).
-fn seen(h: &[f64], edge: usize, i: usize) -> f64 {
+pub(super) fn seen(h: &[f64], edge: usize, i: usize) -> f64 {
     let m = h.len() / 2;
     if h.is_empty() {
         return if i >= edge { 1.0 } else { 0.0 };
@@ -55,7 +49,14 @@ fn seen(h: &[f64], edge: usize, i: usize) -> f64 {
 }
 
 /// Weighted residual of two levels either side of `edge` on `x[lo..hi]`.
-fn cost(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize, edge: usize) -> f64 {
+pub(super) fn cost(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize, edge: usize) -> f64 {
+    two_levels(x, wt, h, lo, hi, edge).map_or(f64::INFINITY, |f| f.0)
+}
+
+/// The least-squares fit of two levels either side of `edge` on
+/// `x[lo..hi]`: (weighted residual, level before, level after), `None`
+/// where one side holds no weight.
+pub(super) fn two_levels(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize, edge: usize) -> Option<(f64, f64, f64)> {
     // Normal equations of x ≈ a (1 − s) + b s, s the step's share.
     let (mut uu, mut uv, mut vv, mut ux, mut vx, mut xx) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for i in lo..hi {
@@ -71,74 +72,28 @@ fn cost(x: &[f64], wt: &[f64], h: &[f64], lo: usize, hi: usize, edge: usize) -> 
     }
     let det = uu * vv - uv * uv;
     if det <= 1e-12 * (uu * vv).max(1e-300) {
-        return f64::INFINITY;
+        return None;
     }
     let a = (ux * vv - vx * uv) / det;
     let b = (vx * uu - ux * uv) / det;
-    xx - a * ux - b * vx
-}
-
-/// The change points of one segment re-placed at the sample rate
-/// (`k`: the detector's threshold, robust sigmas; `floor`: its weight
-/// floor per channel, torque and position; `smoothed(c)`: whether channel
-/// `c`'s residual is smoothed).
-/// Order is kept, and no two edges come closer than the detector's
-/// separation (`STEP_WINDOW_S`).
-pub fn refine(
-    s: &Segment,
-    r: &[Option<Vec<f64>>; NCH],
-    cps: &[usize],
-    k: f64,
-    floor: [f64; 2],
-    smoothed: impl Fn(usize) -> bool,
-) -> Vec<usize> {
-    let n = s.len();
-    let steps = |x: f64| ((x / s.dt).round() as usize).max(1);
-    let (search, context) = (steps(SEARCH_S), steps(CONTEXT_S));
-    let w = steps(STEP_WINDOW_S).max(3);
-    let min_side = s.sg_m + 2;
-    // Per channel: weights with the detector's floor, the step statistic
-    // and its robust sigma (over this segment), the step's shape.
-    let chans: Vec<(usize, &Vec<f64>, Vec<f64>, Vec<f64>, f64, Vec<f64>)> = (0..2)
-        .filter_map(|c| {
-            let x = r[c].as_ref()?;
-            let wt: Vec<f64> = weights(s, c).into_iter().map(|v| v.max(floor[c])).collect();
-            let st = step_stat(x, &wt, w);
-            let sd = robust_sigma(&st);
-            let h = if smoothed(c) { step_response(s.sg_m) } else { Vec::new() };
-            (sd > 0.0).then_some((c, x, wt, st, sd, h))
-        })
-        .collect();
-    let mut out: Vec<usize> = cps.to_vec();
-    for j in 0..out.len() {
-        let cp = out[j];
-        let z = |ch: &(usize, &Vec<f64>, Vec<f64>, Vec<f64>, f64, Vec<f64>)| ch.3[cp].abs() / ch.4;
-        let torque = chans.iter().find(|ch| ch.0 == TORQUE && z(ch) >= k);
-        let Some((_, x, wt, _, _, h)) = torque.or_else(|| chans.iter().max_by(|a, b| z(a).total_cmp(&z(b)))) else {
-            continue;
-        };
-        let prev = if j == 0 { 0 } else { out[j - 1] };
-        let next = cps.get(j + 1).copied().unwrap_or(n);
-        let lo = prev.max(cp.saturating_sub(context));
-        let hi = next.min(cp + context).min(n);
-        // No interval comes out shorter than the detector's separation:
-        // its levels are cross-validated over alternate blocks of about
-        // that length, and a shorter one would hold a single parity.
-        let a = cp.saturating_sub(search).max(lo + min_side).max(prev + w + 1);
-        let b = (cp + search).min(hi.saturating_sub(min_side)).min(next.saturating_sub(w + 1));
-        if a >= b {
-            continue;
-        }
-        if let Some(best) = (a..=b).min_by(|i, j| cost(x, wt, h, lo, hi, *i).total_cmp(&cost(x, wt, h, lo, hi, *j))) {
-            out[j] = best;
-        }
-    }
-    out
+    Some(((xx - a * ux - b * vx).max(0.0), a, b))
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
+
+    /// Uniform noise of peak-to-peak `amp` from a fixed xorshift seed, so
+    /// the tests are deterministic.
+    pub(in crate::diagnose::disturbance) fn noise(seed: u64, amp: f64) -> impl FnMut() -> f64 {
+        let mut st = seed;
+        move || {
+            st ^= st << 13;
+            st ^= st >> 7;
+            st ^= st << 17;
+            (st as f64 / u64::MAX as f64 - 0.5) * amp
+        }
+    }
 
     /// The step response rises from 0 to 1 symmetrically about the half
     /// sample before the edge, as a symmetric filter's must, and is 1 from
@@ -161,13 +116,7 @@ mod tests {
         let m = 10;
         let n = 600;
         let edge = 317;
-        let mut st = 0x2545_f491_4f6c_dd1du64;
-        let mut noise = || {
-            st ^= st << 13;
-            st ^= st >> 7;
-            st ^= st << 17;
-            (st as f64 / u64::MAX as f64 - 0.5) * 0.2
-        };
+        let mut noise = noise(0x2545_f491_4f6c_dd1d, 0.2);
         let raw: Vec<f64> = (0..n).map(|i| if i >= edge { 1.0 } else { 0.0 } + noise()).collect();
         let x = sg_smooth(&raw, m);
         let wt = vec![1.0; n];

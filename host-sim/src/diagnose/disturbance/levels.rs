@@ -7,6 +7,27 @@ use crate::diagnose::effects::{Effect, MAXP};
 use crate::diagnose::fit::ChannelPred;
 use crate::diagnose::residual::{sg_smooth, Nominal, Segment, NCH, TORQUE};
 
+/// One interval's level on one channel.
+#[derive(Clone, Copy, Debug)]
+pub struct LevelFit {
+    pub channel: usize,
+    pub start: usize,
+    pub end: usize,
+    pub level: f64,
+    /// 1-sigma uncertainty (`None`: no weight).
+    pub sd: Option<f64>,
+}
+
+/// Standard error of the mean of block levels.
+fn spread(v: &[f64]) -> Option<f64> {
+    if v.len() < 2 {
+        return None;
+    }
+    let n = v.len() as f64;
+    let mu = v.iter().sum::<f64>() / n;
+    Some((v.iter().map(|x| (x - mu).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt())
+}
+
 /// How the levels of an interval act on the channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Levels {
@@ -52,14 +73,19 @@ fn gain(mode: Levels, s: &Segment, i: usize, c: usize, nominal: &Nominal) -> f64
 
 /// Cross-validated piecewise-constant prediction of the channels `chans`
 /// of one segment. Every interval between change points is cut into
-/// blocks of twice the smoothing window of alternating parity; the levels
+/// blocks of twice the smoothing window (halves, if shorter) of
+/// alternating parity; the levels
 /// of parity p (per channel, or one force for all channels) are fitted on
 /// parity-p samples only and form a signal over the whole segment, which
 /// predicts the samples of the other parity (smoothed where the channel's
 /// residual is smoothed). Returns the prediction per channel, the levels
-/// (channel, level on all of an interval's samples: N for `Force`, the
-/// channel's own unit for `PerChannel`) and every change point with the
-/// weighted residual energy it explains.
+/// (channel, first sample, end, level on all of an interval's samples: N
+/// for `Force`, the channel's own unit for `PerChannel`, and its 1-sigma
+/// uncertainty) and every change point with the weighted residual energy
+/// it explains. The uncertainty is the spread of the level over the
+/// interval's blocks, over the root of their number: the floor is
+/// correlated over about the smoothing window, which a per-sample
+/// variance would not see, and the blocks are twice as long.
 #[allow(clippy::too_many_arguments)]
 pub fn cv_levels(
     s: &Segment,
@@ -69,13 +95,16 @@ pub fn cv_levels(
     mode: Levels,
     nominal: &Nominal,
     w: &[f64; NCH],
-) -> (ChannelPred, Vec<(usize, usize, usize, f64)>, Steps) {
+) -> (ChannelPred, Vec<LevelFit>, Steps) {
     let n = s.len();
     let b = 2 * (2 * s.sg_m + 1);
     let mut bounds = vec![0];
     bounds.extend(cps.iter().copied().filter(|i| *i > 0 && *i < n));
     bounds.push(n);
-    let parity = |a: usize, i: usize| ((i - a) / b) % 2;
+    // An interval shorter than two blocks (edges may sit a smoothing
+    // window apart) is cut in halves instead, so both parities hold data
+    // and each half is still predicted by the other.
+    let parity = |a: usize, e: usize, i: usize| ((i - a) / b.min(((e - a) / 2).max(1))) % 2;
     // Gains once per sample and channel.
     let g: Vec<Vec<f64>> = (0..NCH)
         .map(|c| {
@@ -100,14 +129,22 @@ pub fn cv_levels(
         // Normal equations per parity and per channel (summed for Force).
         let mut num = [[0.0; NCH]; 2];
         let mut den = [[0.0; NCH]; 2];
+        let nb = (e - a).div_ceil(b);
+        let mut bnum = vec![[0.0; NCH]; nb];
+        let (mut sxx, mut sww) = ([0.0; NCH], [0.0; NCH]);
+        let mut bden = vec![[0.0; NCH]; nb];
         for &c in chans {
             let Some(x) = &r[c] else { continue };
             let wc = if mode == Levels::Force { w[c] } else { 1.0 };
             for i in a..e {
-                let p = parity(a, i);
+                let p = parity(a, e, i);
                 let ww = (wc * s.weight(c, i)).powi(2);
                 num[p][c] += ww * g[c][i] * x[i];
                 den[p][c] += ww * g[c][i] * g[c][i];
+                bnum[(i - a) / b][c] += ww * g[c][i] * x[i];
+                bden[(i - a) / b][c] += ww * g[c][i] * g[c][i];
+                sxx[c] += ww * x[i] * x[i];
+                sww[c] += ww;
             }
         }
         let lv = |p: usize, c: usize| match mode {
@@ -177,7 +214,26 @@ pub fn cv_levels(
         // Every channel's level (one force under each channel for `Force`).
         for &c in chans {
             if whole[c].1 > 0.0 {
-                levels.push((c, a, e, whole[c].0));
+                let block: Vec<f64> = (0..nb)
+                    .filter_map(|q| {
+                        let (nu, de): (f64, f64) = match mode {
+                            Levels::PerChannel => (bnum[q][c], bden[q][c]),
+                            Levels::Force => (bnum[q].iter().sum(), bden[q].iter().sum()),
+                        };
+                        (de > 0.0).then(|| nu / de)
+                    })
+                    .collect();
+                // Too short for two blocks: the residual's variance per
+                // sample taken as correlated over the smoothing window.
+                let short = || {
+                    let (xx, ww, de): (f64, f64, f64) = match mode {
+                        Levels::PerChannel => (sxx[c], sww[c], whole[c].1),
+                        Levels::Force => (sxx.iter().sum(), sww.iter().sum(), whole[c].1),
+                    };
+                    let var = ((xx - whole[c].0 * whole[c].0 * de) / ww).max(0.0);
+                    (ww > 0.0 && de > 0.0).then(|| (var * (2 * s.sg_m + 1) as f64 / de).sqrt())
+                };
+                levels.push(LevelFit { channel: c, start: a, end: e, level: whole[c].0, sd: spread(&block).or_else(short) });
             }
         }
     }
@@ -198,7 +254,7 @@ pub fn cv_levels(
         let mut out = vec![0.0; n];
         for iv in bounds.windows(2) {
             for (i, o) in out.iter_mut().enumerate().take(iv[1]).skip(iv[0]) {
-                *o = sm[1 - parity(iv[0], i)][i];
+                *o = sm[1 - parity(iv[0], iv[1], i)][i];
             }
         }
         Some(out)
