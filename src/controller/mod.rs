@@ -592,6 +592,12 @@ impl Controller {
 /// the direction the encoder counts up (positive rotation extends the rod,
 /// a positive load opposes extension).
 pub(super) fn expected_load_current_q_a(p: &ControlParams) -> f32 {
-    let torque = p.startup.expected_load_force_n * p.metres_per_rad();
+    load_current_q_a(p, p.startup.expected_load_force_n)
+}
+
+/// The q current whose torque balances `force_n` at the nut (the screw's
+/// ideal lead; friction is the caller's band).
+pub(super) fn load_current_q_a(p: &ControlParams, force_n: f32) -> f32 {
+    let torque = force_n * p.metres_per_rad();
     torque / p.torque_constant_n_m_a()
 }

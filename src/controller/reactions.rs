@@ -82,9 +82,8 @@ impl Controller {
             // the difference until it lets go, and the rod sags until the
             // loops catch it.
             let slow_n = self.load.slow_force_n();
-            let kt = self.params.torque_constant_n_m_a();
-            let load_a = slow_n * self.params.metres_per_rad() / kt;
-            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / kt;
+            let load_a = super::load_current_q_a(&self.params, slow_n);
+            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / self.params.torque_constant_n_m_a();
             let q = self.current_reference.q;
             let held = if (q - load_a).abs() <= band_a { q } else { load_a };
             if held.is_finite() {
