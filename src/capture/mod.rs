@@ -415,7 +415,7 @@ impl Capture {
     pub fn flushes_next_period(&self) -> bool {
         self.recording
             && self.skip == 0
-            && (self.pending_len as usize + 1 >= PENDING_FRAMES || (self.state == CaptureState::Triggered && self.frames_to_event == 1))
+            && (self.pending_len as usize >= PENDING_FRAMES - 1 || (self.state == CaptureState::Triggered && self.frames_to_event == 1))
     }
 
     /// Ends a frame; true when the frame count-down ran out: the caller
