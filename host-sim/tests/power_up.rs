@@ -140,6 +140,30 @@ fn offset_errors_are_held_within_the_bound_on_the_fastest_sinking_unit() {
     }
 }
 
+/// A near-empty rod (2 % of the rated payload) with a stored offset a
+/// quarter turn off: the motor makes no torque, and a load that light
+/// never shows it once the brake lets go (friction holds the rod still, the
+/// loops look settled) until homing asks for a move and the rod falls. The
+/// offset must be caught by a check that does not lean on the load, before
+/// the brake opens: each offset error is named, the rod drops at most
+/// 0.5 mm, and the stored offset comes back unchanged.
+#[test]
+fn a_light_rod_with_a_wrong_stored_offset_is_caught_before_the_brake_opens() {
+    let base = RigConfig::nominal().unwrap();
+    let rig = host_sim::rigs::Draw { payload: 0.02, ..host_sim::rigs::Draw::BASE }.apply(&base);
+    let cases = suite(0, 0.01, 0.05, rig.plant.screw.lead_m, 2280);
+    let picked: Vec<_> = cases.iter().filter(|c| c.failure.offset_error_rad().is_some()).collect();
+    assert_eq!(picked.len(), 3);
+    let rows = picked.par_iter().map(|c| run_case(&rig, c)).collect::<anyhow::Result<Vec<_>>>().unwrap();
+    for r in &rows {
+        println!("payload 2 % {:24} drop {:.4} mm movement {:.4} mm {:?} {}", r.name, r.rod_drop_max_mm, r.rod_movement_max_mm, r.faults, r.verdict);
+    }
+    for r in &rows {
+        assert!(r.passed, "{}: {}", r.name, r.verdict);
+        assert!(r.faults == ["wrong_direction"] && r.rod_drop_max_mm <= 0.5, "{} {:?}", r.name, r.faults);
+    }
+}
+
 /// The reaction's angles, alone: a missing torque turns by the quarter the
 /// back-EMF's d part points to (`e_d = −ω_e ψ sin δ`), a reversal seen on
 /// that trial by half a turn more, a reversed torque by half a turn at once;

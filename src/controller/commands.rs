@@ -258,6 +258,12 @@ impl Controller {
                 if !matches!(self.mode, Mode::Disabled | Mode::Running) || self.move_in_progress() {
                     return Err(CommandError::Busy);
                 }
+                // A stored offset is checked, not trusted: the commutation
+                // step runs and must find it (a light load hides an offset
+                // that makes no torque until homing drops the rod).
+                if self.mode == Mode::Disabled && self.params.startup.commutation_known && self.params.brake.fitted {
+                    self.readiness.remove(Readiness::COMMUTATED);
+                }
                 self.start_up_sequence = true;
                 self.next_start_up_step();
                 Ok(CommandOutcome::Accepted)

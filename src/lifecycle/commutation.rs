@@ -23,6 +23,10 @@
 //!    reference field-oriented control starts from (bumpless); its q part is
 //!    the measured load.
 //!
+//! A stored offset (`startup.commutation_known`) goes through the same
+//! steps: the sweep must find it within an eighth of a turn, whatever the
+//! load, before the brake lets go.
+//!
 //! A failure after the brake let go holds the vector while the brake closes,
 //! then reports: the load never hangs on nothing.
 
@@ -528,6 +532,18 @@ impl Commutation {
         // sweep's mean position.
         let theta_mean = atan2(-a, b);
         self.offset_rad = wrap_pi(theta_mean - (self.turn0_counts + mean) * electrical_rad_per_count);
+        // A stored offset (an absolute encoder) is checked against the fit,
+        // still on the closed brake: an error near a quarter turn makes no
+        // torque, which a light load never shows once the brake lets go.
+        // Within an eighth of a turn it is kept bit for bit.
+        if p.startup.commutation_known {
+            let stored = p.encoder.electrical_offset_rad;
+            if wrap_pi(self.offset_rad - stored).abs() > 0.25 * PI {
+                self.fail(FaultSet::WRONG_DIRECTION);
+                return;
+            }
+            self.offset_rad = stored;
+        }
         let theta_now = self.offset_rad + s.counts_in_turn * electrical_rad_per_count;
         let q = s.load_hint_q_a;
         self.hold_a = sqrt(hold_d_a * hold_d_a + q * q);
