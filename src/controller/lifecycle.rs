@@ -122,7 +122,17 @@ impl Controller {
     /// the hold has settled (`Homing::settle`); a hold that never settles
     /// is refused, not reported ready.
     pub(super) fn homing_tick(&mut self) {
-        if self.mode == Mode::Homing && self.homing_backing_off && !self.move_in_progress() {
+        if self.mode == Mode::Homing && self.homing_backing_off {
+            self.homing_settle_tick();
+        }
+    }
+
+    /// Out of line: it runs only while homing backs off and settles, and
+    /// kept out of the position period's code it costs that period nothing.
+    #[cold]
+    #[inline(never)]
+    fn homing_settle_tick(&mut self) {
+        if !self.move_in_progress() {
             let x = self.motor_position_m();
             let slow_n = self.load.slow_force_n();
             let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / self.params.torque_constant_n_m_a();
