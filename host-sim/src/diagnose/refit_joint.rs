@@ -119,3 +119,72 @@ impl GroupChange {
         nom > 0.0 && self.effect_rms >= share * nom && (self.refit - self.base).abs() > CHANGE_SIGMAS * self.sd
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::residual::TORQUE;
+
+    /// A 4 s segment whose reference speed is two sinusoids, its torque
+    /// residual `dc · features` plus white noise of 0.01.
+    fn segment(dc: &[f64], r: &Regression) -> Segment {
+        let (n, dt) = (4000, 1e-3);
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let v_ref: Vec<f64> = t.iter().map(|t| 0.1 * (2.0 * t).sin() + 0.03 * (9.0 * t).sin()).collect();
+        let mut s = Segment { t, v_ref, a_ref: vec![0.0; n], f_load: vec![0.0; n], dt, ..Default::default() };
+        // A deterministic white-ish sequence (a fixed LCG), zero mean.
+        let mut x: u64 = 12345;
+        let res = (0..n)
+            .map(|i| {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let noise = 0.01 * ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt();
+                reg_features(&s, i, 0.0, r.v_eps).iter().zip(dc).map(|(a, b)| a * b).sum::<f64>() + noise
+            })
+            .collect();
+        s.r[TORQUE] = Some(res);
+        s
+    }
+
+    fn regression() -> Regression {
+        let mut c = vec![0.0; NREG];
+        c[2] = 10.0; // 10 A per m/s: the nominal's RMS ≈ 0.74 A
+        Regression { v_eps: 0.005, torque_coef: c.clone(), position_coef: c }
+    }
+
+    /// Two neighbouring lags moved ±500 each: one by one both look changed
+    /// by hundreds of times the nominal's RMS, together (the static gain)
+    /// nothing changed.
+    #[test]
+    fn cancelling_lags_are_no_change() {
+        let r = regression();
+        let mut dc = vec![0.0; NREG];
+        dc[3] = 500.0;
+        dc[4] = -500.0;
+        let s = segment(&dc, &r);
+        let nom = 10.0 * (s.v_ref.iter().map(|v| v * v).sum::<f64>() / s.len() as f64).sqrt();
+        let g = group_changes(&[&s], &[&s], &r, TORQUE, &r.torque_coef, &dc);
+        let speeds = g.iter().find(|g| g.name.contains('Σ')).expect("the speed group");
+        assert!(speeds.effect_rms < 1e-9 && !speeds.changed(nom, 0.1), "effect {}", speeds.effect_rms);
+        // Alone, either lag's effect is far beyond the share.
+        let alone = 500.0 * (s.v_ref.iter().map(|v| v * v).sum::<f64>() / s.len() as f64).sqrt();
+        assert!(alone > 10.0 * nom);
+        assert!(g.iter().all(|g| !g.changed(nom, 0.1)), "{:?}", g.iter().map(|g| &g.name).collect::<Vec<_>>());
+    }
+
+    /// A static gain 30 % higher, spread over two lags, is a change, with
+    /// the summed value reported.
+    #[test]
+    fn a_static_gain_change_counts() {
+        let r = regression();
+        let mut dc = vec![0.0; NREG];
+        dc[2] = 2.0;
+        dc[5] = 1.0;
+        let s = segment(&dc, &r);
+        let nom = 10.0 * (s.v_ref.iter().map(|v| v * v).sum::<f64>() / s.len() as f64).sqrt();
+        let g = group_changes(&[&s], &[&s], &r, TORQUE, &r.torque_coef, &dc);
+        let speeds = g.iter().find(|g| g.name.contains('Σ')).expect("the speed group");
+        assert!((speeds.refit - 13.0).abs() < 1e-12 && (speeds.base - 10.0).abs() < 1e-12);
+        assert!(speeds.changed(nom, 0.1), "effect {} of {nom}, sd {}", speeds.effect_rms, speeds.sd);
+        assert!(g.iter().filter(|g| g.changed(nom, 0.1)).count() == 1);
+    }
+}
