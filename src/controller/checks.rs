@@ -5,7 +5,7 @@ use super::Controller;
 use crate::foc::transforms::SinCos;
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
-use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
+use crate::protection::{FaultSet, LimitFlags, TorqueLook, TorqueWatchVerdict};
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
@@ -354,8 +354,23 @@ impl Controller {
         // The load is winning the stop and the motor is the stronger of the
         // two: handing the load to the brake alone would let it slide, so
         // the brake closes now and the loops push with it.
-        let stop_losing =
-            self.mode == Mode::Stopping && following > f.stop_following_error_m && self.params.brake.fitted && !brake_stronger;
+        // It is already lost when the motor is at its limit and the rod runs
+        // away from the stop, turning: on a light rod (little mass beyond
+        // the rotor's) such a load gathers speed fast, and while the stop
+        // strays its error bound and the brake's engage time passes the rod
+        // reaches the speed where the back-EMF and the reactance's drop fill
+        // the bus's voltage circle (about 0.3 m/s at 48 V): the braking
+        // current escapes the current loop, the comparator trips and the
+        // brake, weaker than the load, slides. Called now, the brake closes
+        // on a slower rod.
+        let w = self.speed_rad_s();
+        let runs_away = (self.position_command_m - x) * w < 0.0
+            && w.abs() > f.encoder_lost_speed_rad_s
+            && self.limits.intersects(LimitFlags::CURRENT.union(LimitFlags::VOLTAGE));
+        let stop_losing = self.mode == Mode::Stopping
+            && (following > f.stop_following_error_m || runs_away)
+            && self.params.brake.fitted
+            && !brake_stronger;
         if matches!(self.mode, Mode::Running | Mode::Preloading) && homed {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();
