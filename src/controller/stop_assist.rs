@@ -18,12 +18,6 @@ use super::Controller;
 use crate::io::{PwmCommand, SensorSample};
 use crate::telemetry::Mode;
 
-/// How far the motor side may move while the motor's share ramps down
-/// before that counts as the brake slipping (about 0.5 mm of rod): well
-/// above the position noise and the brake's elastic give under a held load,
-/// far below the stop's own 3 mm error bound.
-const HANDOVER_SLIP_M: f32 = 0.5e-3;
-
 impl Controller {
     /// The brake closes under a controlled stop the load is winning; the
     /// loops hold on with it, the stop anchored where the rod got to.
@@ -57,7 +51,7 @@ impl Controller {
             let x = self.motor_position_m();
             if self.brake_periods <= engage {
                 self.handover_anchor_m = x;
-            } else if (x - self.handover_anchor_m).abs() > HANDOVER_SLIP_M {
+            } else if (x - self.handover_anchor_m).abs() > self.params.brake.handover_slip_m {
                 // The brake alone does not hold this load yet.
                 self.brake_periods = 0;
                 self.handover_anchor_m = x;
