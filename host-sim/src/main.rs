@@ -83,6 +83,11 @@ enum Cmd {
         /// The same cases on every rig of a family (`host-sim rigs`); no homings.
         #[arg(long, conflicts_with = "params")]
         family: Option<PathBuf>,
+        /// Power up each rig as a commissioned unit: its torque filter
+        /// chosen first by its own test moves (docs/tuning-family.md, "The
+        /// torque filter per unit"), as the tracking suites do.
+        #[arg(long)]
+        tune_filter: bool,
     },
     Train(host_sim::trainer::TrainArgs),
     /// Turn the drive's own logs (telemetry CSV, a logger's CSV with the
@@ -247,10 +252,10 @@ fn main() -> Result<()> {
             let rigs = host_sim::rigs::load_family(&dir)?;
             family_done(host_sim::fault_injection::family::run_family(&rigs, &dir, &out)?, &out)
         }
-        Cmd::PowerUp { out, family: Some(dir), power_ups, rod_min_m, rod_max_m, seed, .. } => {
+        Cmd::PowerUp { out, family: Some(dir), power_ups, rod_min_m, rod_max_m, seed, tune_filter, .. } => {
             check_rod_range(rod_min_m, rod_max_m)?;
             let rigs = host_sim::rigs::load_family(&dir)?;
-            let s = host_sim::power_up::family::run_family(&rigs, &dir, power_ups, (rod_min_m, rod_max_m), seed, &out)?;
+            let s = host_sim::power_up::family::run_family(&rigs, &dir, power_ups, (rod_min_m, rod_max_m), seed, tune_filter, &out)?;
             family_done(s, &out)
         }
         Cmd::Faults { out, params, family: None } => {
@@ -261,8 +266,8 @@ fn main() -> Result<()> {
             let missed: Vec<String> = rows.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.violations.join(", "))).collect();
             suite_done("faults", &missed, &out)
         }
-        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed, family: None } => {
-            power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed)
+        Cmd::PowerUp { out, params, power_ups, rod_min_m, rod_max_m, homings, seed, family: None, tune_filter } => {
+            power_up(out, params, power_ups, (rod_min_m, rod_max_m), homings, seed, tune_filter)
         }
         Cmd::Train(args) => host_sim::trainer::run_cli(&args).map(|_| ()),
         Cmd::DatasetFromLogs(args) => host_sim::trainer::from_logs::run_cli(&args).map(|_| ()),
@@ -372,11 +377,17 @@ fn suite_done(command: &str, missed: &[String], out: &std::path::Path) -> Result
     anyhow::bail!("{command}: {} missed its requirement: {} (summary: {})", missed.len(), missed.join("; "), out.join("summary.json").display())
 }
 
-fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64) -> Result<()> {
+fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64, f64), homings: usize, seed: u64, tune_filter: bool) -> Result<()> {
     use host_sim::power_up;
     let (lo, hi) = rod_m;
     check_rod_range(lo, hi)?;
-    let rig = RigConfig::load_or_nominal(params.as_ref())?;
+    let mut rig = RigConfig::load_or_nominal(params.as_ref())?;
+    if tune_filter {
+        let (tuned, choice) = host_sim::tuning::filter::retune(&rig, seed).context("choosing the torque filter")?;
+        std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+        std::fs::write(out.join("torque_filter.json"), serde_json::to_string_pretty(&choice)?)?;
+        rig = tuned;
+    }
     let t0 = std::time::Instant::now();
     let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
     // Independent runs, each with its own plant and controller.

@@ -318,3 +318,43 @@ fn bad_configurations_are_refused_with_a_reason() {
     let mut idle = Controller::try_new(rig.control).unwrap();
     assert_eq!(idle.capture_trigger().map_err(|r| r.text()), Err("capture not armed"));
 }
+
+/// The board serves a bulk request (a parameter set: the longest request)
+/// only where `next_period_serves_bulk` says so, so that it never shares a
+/// period with a capture's batch: the record's end, or a full staging
+/// between speed ticks. Foretold right for every end over short records at
+/// decimations 1 and 3 (with a speed divider of 8, the staging fills
+/// between ticks at decimation 1), and never false where neither a speed
+/// tick nor a batch is due (a request waits at most two periods).
+#[test]
+fn bulk_requests_are_held_back_from_a_captures_batch() {
+    let rig = RigConfig::nominal().unwrap();
+    let mut p = rig.control;
+    p.rates.speed_loop_divider = 8;
+    p.rates.position_loop_divider = 40;
+    for decimation in [1u16, 3] {
+        let mut c = Controller::try_new(p).unwrap();
+        c.attach_capture_store(store());
+        let (mut ends, mut served, mut held_in_a_row, mut held_max) = (0, 0, 0, 0);
+        for k in 0..4000u64 {
+            if matches!(c.capture_status().state, CaptureState::Idle | CaptureState::Done) {
+                c.capture_configure(&config(&[Signal::CurrentQ, Signal::Speed], decimation, 37, 0, CaptureTrigger::Command)).unwrap();
+                c.capture_trigger().unwrap();
+            }
+            let serves = c.next_period_serves_bulk();
+            let before = c.capture_status().state;
+            c.step(&SensorSample::idle(ramp_v(k)));
+            if before == CaptureState::Triggered && c.capture_status().state == CaptureState::Done {
+                ends += 1;
+                assert!(!serves, "decimation {decimation}: a request was allowed into the period of a capture's end (period {k})");
+            }
+            served += u32::from(serves);
+            held_in_a_row = if serves { 0 } else { held_in_a_row + 1 };
+            held_max = held_max.max(held_in_a_row);
+        }
+        println!("decimation {decimation}: {ends} ends, {served} of 4000 periods serve, at most {held_max} held in a row");
+        assert!(ends >= 20, "{ends}");
+        assert!(served > 2500, "{served}");
+        assert!(held_max <= 2, "a request waited {held_max} periods");
+    }
+}

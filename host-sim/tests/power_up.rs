@@ -183,22 +183,18 @@ fn the_watch_turns_by_the_emf_then_by_half_a_turn_and_gives_the_offset_back() {
 
 /// A unit whose hold, after homing near the retracted end, rings on the
 /// rod's axial mode instead of settling: K_t/J about 11 % above what the
-/// drive believes (flux +1.7 %, inertia −8 %, as held-out rig 2221/017),
-/// at the rated payload. The ring (about 90 Hz, ±30 A of q current) is
-/// still there when `Disable` closes the brake, so the q current of any one
-/// period is a sample of the swing, not the load. The next `Enable` must
-/// still pre-load the load's torque: with a sampled swing for a preload
-/// (3 A for a 10 A load here) the brake carried the rest and the rod sagged
-/// about 0.1 mm when it let go. The bar is the suite's 10 µm.
-#[test]
-fn enable_preloads_the_load_even_when_the_hold_rang_as_the_brake_closed() {
-    let base = RigConfig::nominal().unwrap();
+/// drive believes (flux +1.7 %, inertia −8 %, as held-out rig 2221/017; a
+/// light payload raises it further). Near the retracted end the structure
+/// is stiffest and the axial mode highest (about 90 Hz), where the shipped
+/// 150 Hz torque filter's lag takes the hold's margin: it rings at about
+/// ±50 µm and ±27 A of q current.
+fn ringing_unit(payload: f64) -> RigConfig {
     let draw = host_sim::rigs::Draw {
         stiffness: 1.0788,
         coulomb: 0.9036,
         viscous: 1.0464,
         screw_mu: 0.8367,
-        payload: 1.0,
+        payload,
         inertia: 0.9186,
         resistance: 1.0484,
         inductance: 1.0365,
@@ -206,14 +202,102 @@ fn enable_preloads_the_load_even_when_the_hold_rang_as_the_brake_closed() {
         lead_error_m_per_m: -0.9588e-4,
         ..host_sim::rigs::Draw::BASE
     };
-    let rig = draw.apply(&base);
-    let cases: Vec<_> = suite(3, 0.01, 0.05, rig.plant.screw.lead_m, 17).into_iter().filter(|c| c.failure == Failure::None).collect();
-    assert_eq!(cases.len(), 3);
-    let rows = cases.par_iter().map(|c| run_case(&rig, c)).collect::<anyhow::Result<Vec<_>>>().unwrap();
-    for r in &rows {
-        println!("{:14} sag {:?} µm ready {:?} s {}", r.name, r.enable_sag_um, r.time_to_ready_s, r.verdict);
-        let sag = r.enable_sag_um.unwrap_or_else(|| panic!("{}: never ready: {}", r.name, r.verdict));
-        assert!(sag <= 10.0, "{}: enable sag {sag:.1} µm", r.name);
-        assert!(r.passed, "{}: {}", r.name, r.verdict);
+    draw.apply(&RigConfig::nominal().unwrap())
+}
+
+/// On the shipped filter that unit must not be reported ready: the hold
+/// after homing never settles, and `StartUp` ends in `lifecycle_timeout`
+/// with the bridge off and the brake closed. Before the settle check it
+/// was reported ready while it rang.
+///
+/// A user who clears the fault and enables anyway gets the ringing hold;
+/// `Disable` then closes the brake on it, so the q current of any one
+/// period is a sample of the swing, not the load. The next `Enable` must
+/// still pre-load the load's torque: with a sampled swing for a preload
+/// (3 A for a 10 A load) the brake carried the rest and the rod sagged
+/// about 0.1 mm when it let go. The bar is the suite's 10 µm.
+#[test]
+fn a_hold_that_rings_after_homing_is_refused_not_ready_and_enable_still_preloads_the_load() {
+    use host_sim::plant::Plant;
+    use host_sim::sim::ClosedLoop;
+    use servo_core::{Command, Controller, FaultSet, Mode, Readiness};
+    let rig = ringing_unit(1.0);
+    let case = &suite(1, 0.01, 0.03, rig.plant.screw.lead_m, 17)[0];
+    let mut plant = Plant::try_new(rig.plant.clone(), case.seed).unwrap();
+    plant.set_initial_state(case.rotor_angle_rad, std::f64::consts::FRAC_PI_2);
+    plant.engage_brake();
+    plant.bench_sensors_mut().encoder_zero_rad = case.encoder_zero_rad;
+    let mut cl = ClosedLoop::new(Controller::try_new(rig.control).unwrap(), plant, rig.plant.inverter.nominal_bus_voltage_v);
+    cl.override_pending(servo_core::PwmCommand::OFF);
+    cl.controller.power_up().unwrap();
+    let periods = |s: f64| (s / f64::from(rig.control.pwm_period_s())).ceil() as u64;
+    cl.controller.command(Command::StartUp).unwrap();
+    let mut homed_at = None;
+    for _ in 0..periods(30.0) {
+        cl.step();
+        let c = &cl.controller;
+        assert!(
+            !(c.faults().is_empty() && c.mode() == Mode::Running && c.readiness() == Readiness::ALL),
+            "reported ready at {:.2} s on a ringing hold",
+            cl.time_s()
+        );
+        if homed_at.is_none() && c.readiness().contains(Readiness::HOMED) {
+            homed_at = Some(cl.time_s());
+        }
+        if !c.faults().is_empty() {
+            break;
+        }
+    }
+    let homed_at = homed_at.expect("homing never found the stop");
+    assert_eq!(cl.controller.faults(), FaultSet::LIFECYCLE_TIMEOUT);
+    // Refused within the settle timeout after the back-off, not at once.
+    let refused_after_s = cl.time_s() - homed_at;
+    println!("homed at {homed_at:.2} s, refused {refused_after_s:.2} s later");
+    assert!(refused_after_s > f64::from(rig.control.commutation.settle_timeout_s), "{refused_after_s}");
+    for _ in 0..periods(0.5) {
+        cl.step();
+    }
+    assert!(!cl.pending_command().enable && cl.plant.state().brake_engaged, "bridge off and brake closed after the refusal");
+
+    cl.controller.command(Command::ClearFaults).unwrap();
+    cl.controller.command(Command::Enable).unwrap();
+    for _ in 0..periods(0.8) {
+        cl.step();
+    }
+    cl.controller.command(Command::Disable).unwrap();
+    for _ in 0..periods(0.3) {
+        cl.step();
+    }
+    assert_eq!(cl.controller.mode(), Mode::Disabled);
+    let before = cl.plant.state().x_rod_m;
+    cl.controller.command(Command::Enable).unwrap();
+    let mut sag = 0.0f64;
+    for _ in 0..periods(0.5) {
+        cl.step();
+        sag = sag.max((cl.plant.state().x_rod_m - before).abs());
+    }
+    println!("enable sag after a ringing hold: {:.2} µm", sag * 1e6);
+    assert!(sag * 1e6 <= 10.0, "enable sag {:.1} µm", sag * 1e6);
+}
+
+/// The same unit commissioned: its torque filter chosen by its own test
+/// moves (`tune filter`) moves the corner above the mode's reach, and every
+/// power-up is ready with a quiet hold: the position error's peak-to-peak
+/// within the torque watch's 10 µm travel and the q current's within 2 A,
+/// at a light and at the rated payload.
+#[test]
+fn the_same_unit_with_its_own_filter_is_ready_with_a_quiet_hold() {
+    for payload in [0.4873, 1.0] {
+        let (rig, choice) = host_sim::tuning::filter::retune(&ringing_unit(payload), 1).unwrap();
+        let cases: Vec<_> = suite(2, 0.01, 0.05, rig.plant.screw.lead_m, 17).into_iter().filter(|c| c.failure == Failure::None).collect();
+        let rows = cases.par_iter().map(|c| run_case(&rig, c)).collect::<anyhow::Result<Vec<_>>>().unwrap();
+        for r in &rows {
+            println!(
+                "payload {payload} filter {} Hz {:14} hold {:?} µm {:?} A sag {:?} µm {}",
+                choice.torque_filter_hz, r.name, r.hold_error_pp_um, r.hold_current_pp_a, r.enable_sag_um, r.verdict
+            );
+            assert!(r.passed, "{}: {}", r.name, r.verdict);
+            assert!(r.hold_error_pp_um.unwrap() <= 10.0 && r.hold_current_pp_a.unwrap() <= 2.0, "{}", r.name);
+        }
     }
 }

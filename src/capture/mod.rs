@@ -406,6 +406,18 @@ impl Capture {
         }
     }
 
+    /// Whether the next PWM period of a recording capture encodes a batch
+    /// into the ring: it is sampled (no skip left) and either fills the
+    /// staging or is the record's last sample (the end flushes and closes
+    /// the record there). Such a period is the capture's longest (≈ 225
+    /// instructions above a plain current-loop period).
+    #[inline(always)]
+    pub fn flushes_next_period(&self) -> bool {
+        self.recording
+            && self.skip == 0
+            && (self.pending_len as usize >= PENDING_FRAMES - 1 || (self.state == CaptureState::Triggered && self.frames_to_event == 1))
+    }
+
     /// Ends a frame; true when the frame count-down ran out: the caller
     /// then calls [`Self::frames_event`] (out of line, from the caller so
     /// that the frame's code keeps no pointer to the capture for it).

@@ -5,7 +5,7 @@
 
 use super::Controller;
 use crate::io::{PwmCommand, SensorSample};
-use crate::lifecycle::{CalibrationResult, CommutationInput, Readiness};
+use crate::lifecycle::{CalibrationResult, CommutationInput, Readiness, SettleVerdict};
 use crate::motion::ScurveMove;
 use crate::protection::FaultSet;
 use crate::telemetry::Mode;
@@ -118,12 +118,34 @@ impl Controller {
         self.homing_backing_off = true;
     }
 
-    /// At the position rate while driving: homing ends once backed off.
+    /// At the position rate while driving: homing ends once backed off and
+    /// the hold has settled (`Homing::settle`); a hold that never settles
+    /// is refused, not reported ready.
     pub(super) fn homing_tick(&mut self) {
-        if self.mode == Mode::Homing && self.homing_backing_off && !self.move_in_progress() {
-            self.homing_backing_off = false;
-            self.set_mode(Mode::Running);
-            self.next_start_up_step();
+        if self.mode == Mode::Homing && self.homing_backing_off {
+            self.homing_settle_tick();
+        }
+    }
+
+    /// Out of line: it runs only while homing backs off and settles, and
+    /// kept out of the position period's code it costs that period nothing.
+    #[cold]
+    #[inline(never)]
+    fn homing_settle_tick(&mut self) {
+        if !self.move_in_progress() {
+            let x = self.motor_position_m();
+            let slow_n = self.load.slow_force_n();
+            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / self.params.torque_constant_n_m_a();
+            let dt = self.derived.position_period_s;
+            match self.homing.settle(&self.params, self.position_command_m - x, self.current_reference.q, band_a, dt) {
+                SettleVerdict::Settling => {}
+                SettleVerdict::NeverSettled => self.raise(FaultSet::LIFECYCLE_TIMEOUT),
+                SettleVerdict::Settled => {
+                    self.homing_backing_off = false;
+                    self.set_mode(Mode::Running);
+                    self.next_start_up_step();
+                }
+            }
         }
     }
 }

@@ -503,6 +503,18 @@ impl Controller {
         self.speed_countdown != 1
     }
 
+    /// Whether the board may serve a bulk request before the next
+    /// [`Controller::step`]: a period that runs the current loop only and
+    /// in which no capture encodes a batch (its record's end or a full
+    /// staging). The longest period is then a parameter set plus a plain
+    /// current-loop period, not that plus the capture's end. A request
+    /// held back waits at most two periods (a speed tick, then a capture's
+    /// end); thread mode allows four.
+    #[inline(always)]
+    pub fn next_period_serves_bulk(&self) -> bool {
+        self.next_period_is_current_only() && !self.capture.flushes_next_period()
+    }
+
     /// The host calls this once the board is up. Nothing moves unless the
     /// configuration asks for it (`startup.run_at_power_up`).
     pub fn power_up(&mut self) -> Result<CommandOutcome, CommandError> {

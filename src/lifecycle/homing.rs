@@ -7,6 +7,16 @@
 //! by then the speed loop sits on its homing current bound, so the push
 //! into the stop — and with it the stop's and the drive train's
 //! deflection — is the same every time. That is what makes it repeatable.
+//!
+//! After the back-off the drive is ready only once the hold is quiet
+//! ([`Homing::settle`]): the position error within half the torque watch's
+//! travel and the q current within the screw's friction band of where it
+//! stood, both for `commutation.settle_s`. A hold whose loop has lost its
+//! margin at the retracted end (a unit whose K_t/J runs above the drive's
+//! belief, its axial mode near 90 Hz where the structure is stiffest and
+//! the torque filter's lag is largest) rings there at tens of micrometres
+//! and amperes, and is refused with `lifecycle_timeout` after
+//! `commutation.settle_timeout_s` instead of being reported ready.
 
 use crate::params::{ControlParams, HomingMethod};
 use crate::protection::FaultSet;
@@ -36,6 +46,19 @@ pub struct Homing {
     contact_s: f32,
     switch_was: Option<bool>,
     done: Option<Result<f32, FaultSet>>,
+    /// The settle after the back-off: how long the hold has been quiet, how
+    /// long it has been judged, and the q current the quiet stretch began at.
+    quiet_s: f32,
+    settling_s: f32,
+    anchor_q_a: f32,
+}
+
+/// The hold's settle after the back-off, once per position period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SettleVerdict {
+    Settling,
+    Settled,
+    NeverSettled,
 }
 
 /// Time to reach the approach speed: a step in velocity would kick the rod
@@ -49,7 +72,48 @@ const CONTACT_LEAD_FACTOR: f32 = 1.5;
 
 impl Homing {
     pub fn new(start_m: f32) -> Self {
-        Self { start_m, command_m: start_m, elapsed_s: 0.0, contact_s: 0.0, switch_was: None, done: None }
+        Self {
+            start_m,
+            command_m: start_m,
+            elapsed_s: 0.0,
+            contact_s: 0.0,
+            switch_was: None,
+            done: None,
+            quiet_s: 0.0,
+            settling_s: 0.0,
+            anchor_q_a: f32::NAN,
+        }
+    }
+
+    /// One look at the hold after the back-off: `following_error_m`
+    /// (command − motor side) and the q current reference.
+    ///
+    /// Quiet means still and not pushing: the error within half of
+    /// `brake.torque_watch_travel_m` (the enable sag bar; a rod kept in a
+    /// band of one travel for the settle time moves under travel / settle
+    /// time on average, 0.2 mm/s), and the q current within `band_a` of
+    /// where the quiet stretch began. The caller gives the screw's friction
+    /// band in current: at rest friction takes up any torque inside it, so
+    /// a held load's current wanders only within it, while a current
+    /// swinging beyond it accelerates the rotor and the rod (a ring of
+    /// ±27 A on the light rig that found this, against a band of ≈ 1 A).
+    /// NaN compares false: not quiet.
+    pub fn settle(&mut self, p: &ControlParams, following_error_m: f32, current_q_a: f32, band_a: f32, dt_s: f32) -> SettleVerdict {
+        self.settling_s += dt_s;
+        let still = following_error_m.abs() <= 0.5 * p.brake.torque_watch_travel_m;
+        if still && (current_q_a - self.anchor_q_a).abs() <= band_a {
+            self.quiet_s += dt_s;
+        } else {
+            self.quiet_s = 0.0;
+            self.anchor_q_a = current_q_a;
+        }
+        if self.quiet_s >= p.commutation.settle_s {
+            SettleVerdict::Settled
+        } else if self.settling_s > p.commutation.settle_timeout_s {
+            SettleVerdict::NeverSettled
+        } else {
+            SettleVerdict::Settling
+        }
     }
 
     pub fn update(&mut self, p: &ControlParams, s: &HomingInput, dt_s: f32) -> HomingOutput {

@@ -13,7 +13,7 @@ pub mod homing;
 
 pub use calibration::{CurrentCalibration, CalibrationResult};
 pub use commutation::{Commutation, CommutationInput, CommutationOutput, CommutationReport, CommutationResult};
-pub use homing::{Homing, HomingInput, HomingOutput};
+pub use homing::{Homing, HomingInput, HomingOutput, SettleVerdict};
 
 /// Which start-up steps are done. Read in telemetry; `Enable` needs
 /// `COMMUTATED`, moves and streams need `HOMED` too.

@@ -181,8 +181,8 @@ fn main() -> ! {
     let mut current_only = [[0u32; 3]; 3];
     let mut accepted = [[0u32; 2]; 3];
     for (i, (op, _)) in ops.iter().enumerate() {
-        let (w, a) = worst_with_bulk(&m, p, *op, true);
-        let (w2, a2) = worst_with_bulk(&m, p, *op, false);
+        let (w, a) = worst_with_bulk(&m, p, *op, Serve::AnyPeriod, false);
+        let (w2, a2) = worst_with_bulk(&m, p, *op, Serve::Firmware, false);
         if let (Some(x), Some(y), Some(acc)) = (any_period.get_mut(i), current_only.get_mut(i), accepted.get_mut(i)) {
             *x = w;
             *y = w2;
@@ -190,8 +190,13 @@ fn main() -> ! {
         }
     }
     let worst_of = |table: &[[u32; 3]; 3]| table.iter().flat_map(|r| r.iter()).copied().max().unwrap_or(0);
+    // A parameter set while short captures end one after another: served
+    // before any current-only period (a capture's end among them), and as
+    // the firmware serves it (never beside a capture's batch).
+    let (cap_current_only, cap_acc0) = worst_with_bulk(&m, p, Bulk::ApplyParams, Serve::CurrentOnly, true);
+    let (cap_firmware, cap_acc1) = worst_with_bulk(&m, p, Bulk::ApplyParams, Serve::Firmware, true);
     let worst_any = worst_of(&any_period);
-    let worst_fw = worst_of(&current_only);
+    let worst_fw = worst_of(&current_only).max(cap_firmware.iter().copied().max().unwrap_or(0));
     let position_max = pos.insns(&m).2;
 
     // ---- observer ---------------------------------------------------------
@@ -512,6 +517,10 @@ fn main() -> ! {
         }
     }
     hprintln!(
+        "  apply_params while captures end: current-only periods {:>5} {:>5} {:>5}   firmware (no capture batch) {:>5} {:>5} {:>5}   ({} / {} accepted)",
+        cap_current_only[0], cap_current_only[1], cap_current_only[2], cap_firmware[0], cap_firmware[1], cap_firmware[2], cap_acc0, cap_acc1
+    );
+    hprintln!(
         "worst PWM period: {} with requests wherever they land, {} as the firmware serves them (period 8500 cycles; 40 % = 3400); longest position period without a request {:.0}",
         worst_any, worst_fw, position_max
     );
@@ -532,10 +541,14 @@ fn main() -> ! {
     hprintln!("JSON   \"closed_loop_faults\": {},", faults_seen);
     hprintln!("JSON   \"observer_in_step\": {},", OBSERVER_IN_STEP);
     hprintln!("JSON   \"worst_period\": {{");
-    hprintln!("JSON     \"note\": \"longest PWM period (step + a bulk request served before it) over the golden closed loop, one request every 7th period; firmware = served only before a current-only period, as the PWM interrupt does\",");
+    hprintln!("JSON     \"note\": \"longest PWM period (step + a bulk request served before it) over the golden closed loop, one request every 7th period; firmware = served only before a current-only period without a capture batch, as the PWM interrupt does\",");
     hprintln!("JSON     \"firmware\": {},", worst_fw);
     hprintln!("JSON     \"requests_in_any_period\": {},", worst_any);
     hprintln!("JSON     \"position_period_max_without_request\": {:.0},", position_max);
+    hprintln!(
+        "JSON     \"apply_params_capturing\": {{\"current_only\": [{}, {}, {}], \"firmware\": [{}, {}, {}], \"accepted\": [{}, {}]}},",
+        cap_current_only[0], cap_current_only[1], cap_current_only[2], cap_firmware[0], cap_firmware[1], cap_firmware[2], cap_acc0, cap_acc1
+    );
     for (i, (_, name)) in ops.iter().enumerate() {
         if let (Some(a), Some(f), Some(acc)) = (any_period.get(i), current_only.get(i), accepted.get(i)) {
             hprintln!(

@@ -119,15 +119,28 @@ pub(crate) fn serve_bulk(c: &mut Controller, op: Bulk, set: &ValidatedParams, cf
     black_box((c.telemetry(), c.move_in_progress()));
 }
 
+/// Where a bulk request may be served.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Serve {
+    /// Wherever it lands.
+    AnyPeriod,
+    /// Before any period that runs the current loop only
+    /// (`Controller::next_period_is_current_only`), a capture's end or not.
+    CurrentOnly,
+    /// As the firmware's interrupt does: before a current-only period in
+    /// which no capture encodes a batch (`Controller::next_period_serves_bulk`).
+    Firmware,
+}
+
 /// The longest PWM period with bulk requests in it: the golden closed loop,
 /// with `op` served before the step of every 7th period while the drive
 /// runs (7 is prime to the dividers 4 and 20, so the requests land in
-/// every kind of period). `in_any_period`: served wherever it lands; else
-/// as the firmware's interrupt does, held back to the next period that runs
-/// the current loop only (`Controller::next_period_is_current_only`).
+/// every kind of period), where `serve` allows. `capturing`: a 64-sample,
+/// four-signal capture records throughout, re-armed (not counted) as each
+/// ends, so its ends (the capture's longest periods) meet the requests.
 /// Returns the longest (step + request) period by kind (current-only,
 /// speed, position) and how many requests the controller accepted.
-pub(crate) fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_period: bool) -> ([u32; 3], u32) {
+pub(crate) fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, serve: Serve, capturing: bool) -> ([u32; 3], u32) {
     let mut bench = p.commissioned();
     bench.startup.expected_load_force_n = 0.0;
     bench.brake.fitted = false;
@@ -163,10 +176,20 @@ pub(crate) fn worst_with_bulk(m: &Meter, p: ControlParams, op: Bulk, in_any_peri
             *i += 0.03 * noise.next();
         }
         let running = c.mode() == Mode::Running;
+        if capturing && running && c.capture_status().state != servo_core::capture::CaptureState::Armed && c.capture_status().state != servo_core::capture::CaptureState::Triggered {
+            let short = CaptureConfig { samples: 64, pre_trigger: 0, ..cfg };
+            let _ = c.capture_configure(&short);
+            let _ = c.capture_trigger();
+        }
         if running && k % 7 == 0 && !(op == Bulk::TestStart && c.test_running()) {
             pending = true;
         }
-        let serve = pending && (in_any_period || c.next_period_is_current_only());
+        let serve = pending
+            && match serve {
+                Serve::AnyPeriod => true,
+                Serve::CurrentOnly => c.next_period_is_current_only(),
+                Serve::Firmware => c.next_period_serves_bulk(),
+            };
         let set = sets.get(k % 2).and_then(|v| v.as_ref().ok());
         let (o, t) = match (serve, set) {
             (true, Some(set)) => {

@@ -17,13 +17,17 @@ pub fn run_family(
     power_ups: usize,
     rod_m: (f64, f64),
     seed: u64,
+    tune_filter: bool,
     out: &Path,
 ) -> Result<serde_json::Value> {
     let t0 = std::time::Instant::now();
     let mut rows = vec![];
     for r in family {
-        let cases = suite(power_ups, rod_m.0, rod_m.1, r.rig.plant.screw.lead_m, seed);
-        let results = cases.par_iter().map(|c| run_case(&r.rig, c)).collect::<Result<Vec<_>>>()?;
+        let dir = out.join(&r.name);
+        std::fs::create_dir_all(&dir)?;
+        let (rig, _) = crate::scenario::family::tuned(r, seed, tune_filter, &dir)?;
+        let cases = suite(power_ups, rod_m.0, rod_m.1, rig.plant.screw.lead_m, seed);
+        let results = cases.par_iter().map(|c| run_case(&rig, c)).collect::<Result<Vec<_>>>()?;
         let summary = super::summarise(&results, &[], 0.0);
         super::write_report(&summary, &results, &out.join(&r.name))?;
         rows.push(row(&r.name, &results));
@@ -43,9 +47,11 @@ pub fn run_family(
             ("rod_movement_max_mm", Worst::Max),
             ("electrical_offset_error_max_deg", Worst::Max),
             ("enable_sag_max_um", Worst::Max),
+            ("hold_error_pp_max_um", Worst::Max),
+            ("hold_current_pp_max_a", Worst::Max),
             ("time_to_ready_max_s", Worst::Max),
         ],
-        serde_json::json!({ "power_ups_per_rig": power_ups, "failure_cases_per_rig": Failure::ALL.len(), "seed": seed }),
+        serde_json::json!({ "power_ups_per_rig": power_ups, "failure_cases_per_rig": Failure::ALL.len(), "seed": seed, "tune_filter": tune_filter }),
         t0.elapsed().as_secs_f64(),
         out,
     )
@@ -77,6 +83,8 @@ fn row(rig: &str, results: &[CaseResult]) -> RigRow {
             ("rod_movement_max_mm".into(), max(&mut ok.iter().map(|r| r.rod_movement_max_mm))),
             ("electrical_offset_error_max_deg".into(), max(&mut ok.iter().filter_map(|r| r.electrical_offset_error_deg))),
             ("enable_sag_max_um".into(), max(&mut ok.iter().filter_map(|r| r.enable_sag_um))),
+            ("hold_error_pp_max_um".into(), max(&mut ok.iter().filter_map(|r| r.hold_error_pp_um))),
+            ("hold_current_pp_max_a".into(), max(&mut ok.iter().filter_map(|r| r.hold_current_pp_a))),
             ("time_to_ready_max_s".into(), max(&mut ok.iter().filter_map(|r| r.time_to_ready_s))),
         ],
     }

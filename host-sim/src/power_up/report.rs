@@ -28,6 +28,8 @@ pub fn summarise(rows: &[CaseResult], homing_zeros_m: &[f64], wall_s: f64) -> se
         "rod_movement_max_mm": max_of(&ok, |r| Some(r.rod_movement_max_mm)),
         "electrical_offset_error_max_deg": max_of(&ok, |r| r.electrical_offset_error_deg),
         "enable_sag_max_um": max_of(&ok, |r| r.enable_sag_um),
+        "hold_error_pp_max_um": max_of(&ok, |r| r.hold_error_pp_um),
+        "hold_current_pp_max_a": max_of(&ok, |r| r.hold_current_pp_a),
         "time_to_ready_max_s": max_of(&ok, |r| r.time_to_ready_s),
         "failure_rod_drop_max_mm": max_of(&failures, |r| Some(r.rod_drop_max_mm)),
         "homings": homing_zeros_m.len(),

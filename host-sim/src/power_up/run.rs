@@ -43,6 +43,12 @@ pub struct CaseResult {
     pub rod_drop_max_mm: f64,
     pub electrical_offset_error_deg: Option<f64>,
     pub enable_sag_um: Option<f64>,
+    /// Over the hold after ready (before the sag test): the peak-to-peak
+    /// of the position error (command − motor side) and of the q current.
+    /// A quiet hold moves by the encoder's counts and the current by its
+    /// noise; a ringing one by tens of micrometres and amperes.
+    pub hold_error_pp_um: Option<f64>,
+    pub hold_current_pp_a: Option<f64>,
     pub time_to_ready_s: Option<f64>,
     pub bridge_off_at_end: bool,
     pub brake_closed_at_end: bool,
@@ -181,7 +187,9 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
         }
     }
     let mut enable_sag_um = None;
+    let mut hold = None;
     if ready_at.is_some() {
+        hold = Some(hold_spread(&mut cl, &mut step));
         enable_sag_um = Some(enable_sag(&mut cl, &mut step)?);
     }
     let c = &cl.controller;
@@ -197,6 +205,8 @@ pub fn run_case(rig: &RigConfig, case: &PowerUpCase) -> Result<CaseResult> {
         rod_drop_max_mm: drop * 1e3,
         electrical_offset_error_deg: offset_error_deg,
         enable_sag_um,
+        hold_error_pp_um: hold.map(|h| h.0),
+        hold_current_pp_a: hold.map(|h| h.1),
         time_to_ready_s: ready_at,
         bridge_off_at_end: bridge_off,
         brake_closed_at_end: brake_closed,
@@ -232,12 +242,23 @@ fn store_wrong_offset(cl: &mut ClosedLoop, pole_pairs: f64, error_rad: f64) -> R
     Ok(stored)
 }
 
+/// Holds for `HOLD_BEFORE_SAG_TEST_S` after ready: the peak-to-peak of the
+/// position error (µm) and of the q current (A) over it.
+fn hold_spread(cl: &mut ClosedLoop, step: &mut impl FnMut(&mut ClosedLoop)) -> (f64, f64) {
+    let (mut e_lo, mut e_hi, mut i_lo, mut i_hi) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for _ in 0..seconds(cl, HOLD_BEFORE_SAG_TEST_S) {
+        step(cl);
+        let t = cl.controller.telemetry();
+        let e = f64::from(t.position_command_m - t.motor_position_m);
+        let i = cl.plant.state().i_q_a;
+        (e_lo, e_hi, i_lo, i_hi) = (e_lo.min(e), e_hi.max(e), i_lo.min(i), i_hi.max(i));
+    }
+    ((e_hi - e_lo) * 1e6, i_hi - i_lo)
+}
+
 /// `Disable` (the brake closes under the loops), then `Enable`: the largest
 /// rod excursion after `Enable`, micrometres.
 fn enable_sag(cl: &mut ClosedLoop, step: &mut impl FnMut(&mut ClosedLoop)) -> Result<f64> {
-    for _ in 0..seconds(cl, HOLD_BEFORE_SAG_TEST_S) {
-        step(cl);
-    }
     cl.controller.command(Command::Disable).map_err(|e| anyhow!("Disable refused: {e:?}"))?;
     for _ in 0..seconds(cl, DISABLED_BEFORE_ENABLE_S) {
         step(cl);

@@ -339,16 +339,17 @@ fn ADC1_2() {
 
     // A bulk request (a parameter set, a capture or test-signal request:
     // a few hundred bytes of copies and the controller's work) waits for a
-    // period that runs the current loop only: in a speed or position period
-    // it would lengthen the longest period (docs/cost.md, *Worst period*).
-    // The wait is one period; thread mode allows four.
+    // period that runs the current loop only and ends no capture batch: in
+    // a speed or position period, or beside a capture's end, it would
+    // lengthen the longest period (docs/cost.md, *Worst period*). The wait
+    // is at most two periods; thread mode allows four.
     let request = match s.deferred.take() {
         Some(r) => Some(r),
         None => s.link.take_request(),
     };
     let served = request.and_then(|request| {
         let bulk = matches!(request.body, Request::ReadParams | Request::ApplyParams | Request::Bulk);
-        if bulk && !s.link.controller().is_none_or(|c| c.next_period_is_current_only()) {
+        if bulk && !s.link.controller().is_none_or(|c| c.next_period_serves_bulk()) {
             s.deferred = Some(request);
             return None;
         }
