@@ -354,18 +354,26 @@ impl Controller {
         // The load is winning the stop and the motor is the stronger of the
         // two: handing the load to the brake alone would let it slide, so
         // the brake closes now and the loops push with it.
-        // It is already lost when the motor is at its limit and the rod runs
-        // away from the stop, turning: on a light rod (little mass beyond
-        // the rotor's) such a load gathers speed fast, and while the stop
-        // strays its error bound and the brake's engage time passes the rod
-        // reaches the speed where the back-EMF and the reactance's drop fill
-        // the bus's voltage circle (about 0.3 m/s at 48 V): the braking
-        // current escapes the current loop, the comparator trips and the
-        // brake, weaker than the load, slides. Called now, the brake closes
-        // on a slower rod.
+        // It is already lost when the motor is at its limit, the rod runs
+        // away from the stop and, at its present acceleration, would pass
+        // over the brake's engage time the speed where the back-EMF and the
+        // reactance's drop at the current limit fill the bus's voltage
+        // circle: there the braking current escapes the current loop, the
+        // comparator trips and the brake, weaker than the load, slides. A
+        // light rod (little mass beyond the rotor's) gets there while the
+        // stop strays its error bound; called now, the brake closes on a
+        // slower rod. (A rotor springing back off an obstacle is too slow.)
         let w = self.speed_rad_s();
+        let accel = (w - self.speed_prev_rad_s) / self.derived.position_period_s;
+        self.speed_prev_rad_s = w;
+        let m = &self.params.motor;
+        let flux = crate::math::sqrt(m.flux_linkage_wb * m.flux_linkage_wb
+            + m.inductance_q_h * m.inductance_q_h * self.derived.current_limit_a * self.derived.current_limit_a);
+        let bus_speed = crate::foc::svpwm::linear_limit_v(self.bus_voltage_v) * self.params.limits.max_modulation
+            / (flux * m.pole_pairs as f32);
         let runs_away = (self.position_command_m - x) * w < 0.0
-            && w.abs() > f.encoder_lost_speed_rad_s
+            && w * accel > 0.0
+            && (w + accel * self.params.brake.engage_time_s).abs() > bus_speed
             && self.limits.intersects(LimitFlags::CURRENT.union(LimitFlags::VOLTAGE));
         let stop_losing = self.mode == Mode::Stopping
             && (following > f.stop_following_error_m || runs_away)
