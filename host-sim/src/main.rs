@@ -392,7 +392,15 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     let cases = power_up::suite(power_ups, lo, hi, rig.plant.screw.lead_m, seed);
     // Independent runs, each with its own plant and controller.
     let rows = cases.par_iter().map(|c| power_up::run_case(&rig, c)).collect::<Result<Vec<_>>>()?;
-    let zeros = if homings > 0 { power_up::homing_repeatability(&rig, &cases[0], homings)? } else { vec![] };
+    // A rig that never gets ready (a hold that rings) still gets its
+    // table: the homings' failure is one more missed requirement.
+    let (zeros, homings_missed) = match homings {
+        0 => (vec![], None),
+        _ => match power_up::homing_repeatability(&rig, &cases[0], homings) {
+            Ok(z) => (z, None),
+            Err(e) => (vec![], Some(format!("homing repeatability: {e}"))),
+        },
+    };
     let summary = power_up::summarise(&rows, &zeros, t0.elapsed().as_secs_f64());
     power_up::write_report(&summary, &rows, &out)?;
     let mut brief = summary.clone();
@@ -401,7 +409,8 @@ fn power_up(out: PathBuf, params: Option<PathBuf>, power_ups: usize, rod_m: (f64
     }
     println!("{}", serde_json::to_string_pretty(&brief)?);
     print!("{}", std::fs::read_to_string(out.join("cases.md"))?);
-    let missed: Vec<String> = rows.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.verdict)).collect();
+    let mut missed: Vec<String> = rows.iter().filter(|r| !r.passed).map(|r| format!("{}: {}", r.name, r.verdict)).collect();
+    missed.extend(homings_missed);
     suite_done("power-up", &missed, &out)
 }
 

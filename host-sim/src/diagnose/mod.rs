@@ -27,6 +27,7 @@ pub mod plausible;
 pub mod rank;
 mod reference;
 pub mod refit;
+pub mod refit_joint;
 pub mod regions;
 pub mod replay;
 pub mod report;

@@ -25,9 +25,10 @@ use std::collections::BTreeMap;
 /// seal, a preload): those count beyond `LOOSE_TOLERANCE`.
 pub const TIGHT_TOLERANCE: f64 = 0.1;
 pub const LOOSE_TOLERANCE: f64 = 0.5;
-/// A regression coefficient counts as changed when its held-out
-/// contribution (RMS of coefficient change × feature) reaches this share
-/// of the reference nominal's own prediction (RMS).
+/// A regression coefficient (or group of coupled coefficients,
+/// `refit_joint`) counts as changed when its held-out contribution (RMS of
+/// the change × its regressor) reaches this share of the reference
+/// nominal's own prediction (RMS), beyond its joint uncertainty.
 pub const REGRESSION_CHANGE_SHARE: f64 = 0.1;
 /// The constant force and the weight of the moving-mass change agree
 /// within this share when the payload is what the rig file got wrong.
@@ -54,6 +55,10 @@ pub struct Refit {
     /// flux, compliance, a payload): no library effect stands for it.
     pub rig_specific: bool,
     pub constant_force_n: f64,
+    /// The constant's level as the headline states it, in the channel's
+    /// units (N at the nut with the rig's physics; the logged current or
+    /// the tracking error with a regression nominal).
+    pub constant_level: String,
     /// Held-out figures (`figures::PRIMARY`, `figures::WEIGHTED`).
     pub primary_shrink_pct: f64,
     pub weighted_shrink_pct: f64,
@@ -349,6 +354,7 @@ fn describe(out: &mut Refit, coef: &[Vec<f64>; NCH], train: &[&Segment], held: &
             out.constant_force_n = const_force;
             out.only_constant_force =
                 changed.len() == 1 && changed[0].starts_with("constant_nut_force_n");
+            out.constant_level = format!("{const_force:.1} N at the nut");
             // A payload error on a tilted axis changes the weight with the
             // inertia: the constant force is the mass change's weight.
             let (m_file, m_log) = out.params.get("moving_mass_kg").copied().unwrap_or((0.0, 0.0));
@@ -392,41 +398,48 @@ fn describe(out: &mut Refit, coef: &[Vec<f64>; NCH], train: &[&Segment], held: &
                 if coef[c].is_empty() {
                     continue;
                 }
-                // Contribution of each coefficient change against the
-                // reference nominal's prediction, over the held-out part.
+                // Each group's change against the reference nominal's
+                // prediction (RMS over the held-out part), judged with its
+                // joint uncertainty (`refit_joint`).
                 let (mut nom, mut n) = (0.0, 0.0);
-                let mut contrib = vec![0.0; coef[c].len()];
                 for s in held {
                     for i in 0..s.len() {
                         let f = reg_features(s, i, s.f_load[i], r.v_eps);
                         let y: f64 = f.iter().zip(base.iter()).map(|(a, b)| a * b).sum();
                         nom += y * y;
                         n += 1.0;
-                        for (j, k) in contrib.iter_mut().enumerate() {
-                            *k += (f[j] * coef[c][j]).powi(2);
-                        }
                     }
                 }
                 let nom = (nom / f64::max(n, 1.0)).sqrt();
-                for (j, k) in contrib.iter().enumerate() {
-                    let name = format!(
-                        "{}[{}]",
-                        CHANNELS[c],
-                        super::residual::REG_FEATURES[j]
-                    );
-                    let k = (k / f64::max(n, 1.0)).sqrt();
-                    out.params.insert(name.clone(), (base[j], base[j] + coef[c][j]));
-                    if nom > 0.0 && k >= REGRESSION_CHANGE_SHARE * nom {
+                for (j, name) in super::residual::REG_FEATURES.iter().enumerate() {
+                    out.params.insert(format!("{}[{name}]", CHANNELS[c]), (base[j], base[j] + coef[c][j]));
+                }
+                let unit = if c == TORQUE { "A in the logged current" } else { "m in the tracking error" };
+                for g in super::refit_joint::group_changes(train, held, r, c, base, &coef[c]) {
+                    if g.name.ends_with("[1]") {
+                        let level = format!("{:.3e} {unit}", g.refit - g.base);
+                        out.constant_level = if out.constant_level.is_empty() { level } else { format!("{}, {level}", out.constant_level) };
+                    }
+                    out.params.insert(g.name.clone(), (g.base, g.refit));
+                    if g.changed(nom, REGRESSION_CHANGE_SHARE) {
                         changed.push(format!(
-                            "{name} {:.3e} → {:.3e} (its change {:.0} % of the nominal's RMS)",
-                            base[j],
-                            base[j] + coef[c][j],
-                            100.0 * k / nom
+                            "{} {:.3e} → {:.3e} ± {:.1e} (its change {:.0} % of the nominal's RMS)",
+                            g.name,
+                            g.base,
+                            g.refit,
+                            g.sd,
+                            100.0 * g.effect_rms / nom
                         ));
                     }
                 }
             }
         }
+    }
+    // A regression re-fit that moves only the constant terms is an
+    // unmeasured constant load (or offset), as a constant force is with the
+    // rig's physics: no coefficient of the healthy rig changed.
+    if matches!(nominal, Nominal::Regression(_)) {
+        out.only_constant_force = !changed.is_empty() && changed.iter().all(|c| c.split(' ').next().is_some_and(|n| n.ends_with("[1]")));
     }
     out.changed = changed;
 }

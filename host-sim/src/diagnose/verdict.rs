@@ -452,8 +452,8 @@ pub fn decide(i: &Inputs) -> Verdict {
             v.explained_by = "constant unmeasured force".into();
             v.remaining_gap_pct = 100.0 - const_force;
             v.headline = format!(
-                "{lead}The held-out gap is explained by a **constant unmeasured force** of {:.1} N at the nut (acting as an external force; no time course, no rig parameter beyond its tolerance): {PRIMARY} {const_force:.1} % ({WEIGHTED} {:.1} %); {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
-                r.constant_force_n,
+                "{lead}The held-out gap is explained by a **constant unmeasured force** of {} (acting as an external force; no time course, no rig parameter beyond its tolerance): {PRIMARY} {const_force:.1} % ({WEIGHTED} {:.1} %); {REMAINING} {:.1} %. Library effects alone: {share_txt}.",
+                r.constant_level,
                 r.weighted_shrink_pct,
                 v.remaining_gap_pct
             );
