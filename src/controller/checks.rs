@@ -5,7 +5,7 @@ use super::Controller;
 use crate::foc::transforms::SinCos;
 use crate::io::SensorSample;
 use crate::motion::StopRamp;
-use crate::protection::{FaultSet, LimitFlags, TorqueLook, TorqueWatchVerdict};
+use crate::protection::{FaultSet, TorqueLook, TorqueWatchVerdict};
 use crate::telemetry::Mode;
 
 /// Conditions evaluated at the speed-loop rate.
@@ -88,6 +88,7 @@ impl Controller {
         self.compensator.reset();
         self.homing_backing_off = false;
         self.stream.stop();
+        self.speed_prev_rad_s = self.speed_rad_s();
         self.set_mode(Mode::Stopping);
     }
 
@@ -337,6 +338,8 @@ impl Controller {
     fn check_motion(&mut self) -> FaultSet {
         let mut present = FaultSet::NONE;
         let x = self.motor_position_m();
+        // Called every position period of a stop with a brake (see below).
+        let outruns_bus = self.mode == Mode::Stopping && self.params.brake.fitted && self.stop_outruns_bus(x);
         let l = &self.params.limits;
         let f = &self.params.faults;
         let homed = self.stroke_limits_active();
@@ -354,31 +357,12 @@ impl Controller {
         // The load is winning the stop and the motor is the stronger of the
         // two: handing the load to the brake alone would let it slide, so
         // the brake closes now and the loops push with it.
-        // It is already lost when the motor is at its limit, the rod runs
-        // away from the stop and, at its present acceleration, would pass
-        // over the brake's engage time the speed where the back-EMF and the
-        // reactance's drop at the current limit fill the bus's voltage
-        // circle: there the braking current escapes the current loop, the
-        // comparator trips and the brake, weaker than the load, slides. A
-        // light rod (little mass beyond the rotor's) gets there while the
-        // stop strays its error bound; called now, the brake closes on a
-        // slower rod. (A rotor springing back off an obstacle is too slow.)
-        let w = self.speed_rad_s();
-        let accel = (w - self.speed_prev_rad_s) / self.derived.position_period_s;
-        self.speed_prev_rad_s = w;
-        let m = &self.params.motor;
-        let flux = crate::math::sqrt(m.flux_linkage_wb * m.flux_linkage_wb
-            + m.inductance_q_h * m.inductance_q_h * self.derived.current_limit_a * self.derived.current_limit_a);
-        let bus_speed = crate::foc::svpwm::linear_limit_v(self.bus_voltage_v) * self.params.limits.max_modulation
-            / (flux * m.pole_pairs as f32);
-        let runs_away = (self.position_command_m - x) * w < 0.0
-            && w * accel > 0.0
-            && (w + accel * self.params.brake.engage_time_s).abs() > bus_speed
-            && self.limits.intersects(LimitFlags::CURRENT.union(LimitFlags::VOLTAGE));
+        // It is already lost, before it strays that far, when the rod would
+        // outrun the bus while the brake engages (`stop_outruns_bus`).
         let stop_losing = self.mode == Mode::Stopping
-            && (following > f.stop_following_error_m || runs_away)
             && self.params.brake.fitted
-            && !brake_stronger;
+            && !brake_stronger
+            && (outruns_bus || following > f.stop_following_error_m);
         if matches!(self.mode, Mode::Running | Mode::Preloading) && homed {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();

@@ -174,7 +174,8 @@ pub struct Controller {
     /// Under that assist: where the motor side was when the motor's share
     /// of the hold began to ramp down (a slip is measured from here).
     handover_anchor_m: f32,
-    /// The speed at the last position period: a stop's runaway check.
+    /// A controlled stop's speed at its last position period (or at its
+    /// start): the runaway check's acceleration.
     speed_prev_rad_s: f32,
     open_phase: OpenPhaseMonitor,
     /// From enable to the first settle: does the torque make the motion?
