@@ -32,36 +32,76 @@ fn a_load_beyond_the_peak_rating_starts_a_controlled_stop_that_ends_on_the_brake
     assert!(o.rod_speed_end_m_s.abs() < 1e-3, "{}", o.brief());
 }
 
+/// The requirement for `load_beyond_rating` on rig `r`: the latch within
+/// its bound, the rod within 15 mm of where it was at the latch, and the
+/// run ending at rest, on the brake with the bridge off or held by the
+/// loops; a light rod (payload under 10 %) is not held by the motor alone
+/// and must end on the brake. Returns the travel after the latch, metres.
+fn assert_beyond_rating_stop(r: &host_sim::config::RigConfig, what: &str) -> f64 {
+    let p = &r.plant;
+    // The scenario's load in all is 3.9 × 1.38 kN (a light rod's missing
+    // weight made up), or more on a heavy one.
+    let weight_n = p.moving_mass_kg() * p.load.gravity_m_s2;
+    let total_n = catalog::beyond_rating_push_n(r) + weight_n;
+    assert!(total_n >= 3.9 * 1380.0 - 1.0, "{what}: {total_n} N in all");
+    let sc = catalog::load_beyond_rating(r);
+    let o = host_sim::fault_injection::run(&sc).unwrap();
+    let travel = o.excursion_after_latch_m().unwrap_or(f64::NAN);
+    let latched_after = o.latch_period.zip(o.fault_period).map(|(l, f)| l.saturating_sub(f));
+    eprintln!("{what}: latched after {latched_after:?} periods, travel after the latch {:.2} mm", travel * 1e3);
+    assert!(o.violations(&sc.expect).is_empty(), "{what}: {:?}\n{}", o.violations(&sc.expect), o.brief());
+    assert!(o.first_faults.contains(FaultSet::POSITION_FOLLOWING), "{what}: {}", o.brief());
+    let last = o.records.last().unwrap();
+    let held = last.mode == Mode::Stopping && last.bridge_on;
+    let braked = last.mode == Mode::Fault && !last.bridge_on;
+    assert!(held || braked, "{what}: ends in {:?}, bridge on {}", last.mode, last.bridge_on);
+    if p.rod.payload_mass_kg < 0.1 * 136.5 {
+        assert!(braked, "{what}: {}", o.brief());
+    }
+    travel
+}
+
 /// 3.9× the rated thrust in all on a near-empty rod (2 % payload) and on a
 /// 110 % one. On the light rod neither the motor (≈ 4.8 kN against
-/// back-driving) nor the brake holds the push alone; together they do. The
-/// requirement: the latch within its bound, the rod within 15 mm of where
-/// it was at the latch, and the run ending at rest, on the brake with the
-/// bridge off or held by the loops.
+/// back-driving) nor the brake holds the push alone; together they do.
 #[test]
 fn a_load_beyond_the_rating_is_stopped_within_bounded_travel_on_a_light_and_a_heavy_rod() {
     let base = rig();
     for payload in [0.02, 1.1] {
         let r = host_sim::rigs::Draw { payload, ..host_sim::rigs::Draw::BASE }.apply(&base);
-        let p = &r.plant;
-        // The scenario's load in all is 3.9 × 1.38 kN on both (the light
-        // rod's missing weight made up), or more on the heavy one.
-        let weight_n = p.moving_mass_kg() * p.load.gravity_m_s2;
-        let total_n = catalog::beyond_rating_push_n(&r) + weight_n;
-        assert!(total_n >= 3.9 * 1380.0 - 1.0, "payload {payload}: {total_n} N in all");
-        let sc = catalog::load_beyond_rating(&r);
-        let o = host_sim::fault_injection::run(&sc).unwrap();
-        assert!(o.violations(&sc.expect).is_empty(), "payload {payload}: {:?}\n{}", o.violations(&sc.expect), o.brief());
-        assert!(o.first_faults.contains(FaultSet::POSITION_FOLLOWING), "payload {payload}: {}", o.brief());
-        let last = o.records.last().unwrap();
-        let held = last.mode == Mode::Stopping && last.bridge_on;
-        let braked = last.mode == Mode::Fault && !last.bridge_on;
-        assert!(held || braked, "payload {payload}: ends in {:?}, bridge on {}", last.mode, last.bridge_on);
-        if payload < 0.1 {
-            // The light rod is not held by the motor alone: the brake
-            // takes it, and the drive ends switched off on it.
-            assert!(braked, "payload {payload}: {}", o.brief());
-        }
+        assert_beyond_rating_stop(&r, &format!("payload {payload}"));
+    }
+}
+
+/// The light rod with a weak motor: 9 % less flux (less thrust), an
+/// efficient screw (more of the push reaches the rotor), as a second unit
+/// may be (here one drawn at 5.15 % payload, and the same unit at 2 %).
+/// Little mass beyond the rotor's lets the push accelerate it at the
+/// motor's limit; waiting for the stop to stray 3 mm and then for the
+/// brake's engage time, the rod passes about 0.3 m/s, where the back-EMF
+/// and the reactance's drop fill the 48 V bus's voltage circle: the
+/// braking current escapes the current loop, the comparator trips and the
+/// brake alone, weaker than the push, slides about 70 mm.
+#[test]
+fn a_load_beyond_the_rating_on_a_light_rod_with_a_weak_motor_is_braked_before_it_outruns_the_bus() {
+    let base = rig();
+    let unit = host_sim::rigs::Draw {
+        stiffness: 1.0951,
+        coulomb: 1.0941,
+        viscous: 1.0032,
+        screw_mu: 0.8004,
+        payload: 0.0515,
+        inertia: 1.0588,
+        resistance: 0.9710,
+        inductance: 1.0908,
+        flux: 0.9083,
+        lead_error_m_per_m: 2.06e-6,
+        encoder_zero_rad: 3.9375,
+    };
+    for payload in [0.0515, 0.02] {
+        let r = host_sim::rigs::Draw { payload, ..unit }.apply(&base);
+        let travel = assert_beyond_rating_stop(&r, &format!("weak motor, payload {payload}"));
+        assert!(travel.abs() <= catalog::BEYOND_RATING_TRAVEL_MAX_M, "payload {payload}: {travel} m");
     }
 }
 

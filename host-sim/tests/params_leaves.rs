@@ -28,7 +28,7 @@ fn other_value(kind: ValueKind, old: Value, i: usize) -> Value {
 #[test]
 fn table_and_tree_agree_on_every_leaf() {
     assert_eq!(LEAF_COUNT, paths::PARAM_COUNT);
-    assert_eq!(LEAF_COUNT, 121);
+    assert_eq!(LEAF_COUNT, 122);
     let base = ControlParams::DEFAULT;
     for i in 0..LEAF_COUNT {
         let (path, kind) = paths::name(i).unwrap();

@@ -88,6 +88,7 @@ impl Controller {
         self.compensator.reset();
         self.homing_backing_off = false;
         self.stream.stop();
+        self.speed_prev_rad_s = self.speed_rad_s();
         self.set_mode(Mode::Stopping);
     }
 
@@ -331,6 +332,13 @@ impl Controller {
         self.readiness.contains(crate::lifecycle::Readiness::HOMED) && self.mode != Mode::Homing
     }
 
+    /// The brake holds more than the motor at its present current limit.
+    #[inline(always)]
+    fn brake_stronger(&self) -> bool {
+        self.params.brake.fitted
+            && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m
+    }
+
     /// Following error, overtravel and the soft limits, at the position rate.
     /// Stroke and soft limits mean something only once homed.
     #[inline(never)]
@@ -347,15 +355,9 @@ impl Controller {
         if matches!(self.mode, Mode::Running | Mode::Stopping | Mode::Preloading) && following > f.position_following_error_m {
             present.insert(FaultSet::POSITION_FOLLOWING);
         }
-        let brake_stronger = self.params.brake.fitted
-            && self.params.torque_constant_n_m_a() * self.q_current_limit_a < self.params.brake.holding_torque_n_m;
+        let brake_stronger = self.brake_stronger();
         let stop_failed =
             matches!(self.mode, Mode::Stopping | Mode::Braking) && following > f.stop_following_error_m && brake_stronger;
-        // The load is winning the stop and the motor is the stronger of the
-        // two: handing the load to the brake alone would let it slide, so
-        // the brake closes now and the loops push with it.
-        let stop_losing =
-            self.mode == Mode::Stopping && following > f.stop_following_error_m && self.params.brake.fitted && !brake_stronger;
         if matches!(self.mode, Mode::Running | Mode::Preloading) && homed {
             // Where would a stop at the stop deceleration end?
             let v = self.speed_rad_s() * self.params.metres_per_rad();
@@ -385,6 +387,15 @@ impl Controller {
         if stop_failed {
             self.raise(FaultSet::STOP_FAILED);
         }
+        // The load is winning the stop and the motor is the stronger of the
+        // two: handing the load to the brake alone would let it slide, so
+        // the brake closes now and the loops push with it. It is already
+        // lost, before it strays that far, when the rod would outrun the
+        // bus while the brake engages (`stop_outruns_bus`).
+        let stop_losing = self.mode == Mode::Stopping
+            && self.params.brake.fitted
+            && !self.brake_stronger()
+            && ((self.position_command_m - x).abs() > self.params.faults.stop_following_error_m || self.stop_outruns_bus(x));
         if stop_losing {
             self.assist_stop_with_brake();
         } else if self.stop_brake_assist {

@@ -174,6 +174,9 @@ pub struct Controller {
     /// Under that assist: where the motor side was when the motor's share
     /// of the hold began to ramp down (a slip is measured from here).
     handover_anchor_m: f32,
+    /// A controlled stop's speed at its last position period (or at its
+    /// start): the runaway check's acceleration.
+    speed_prev_rad_s: f32,
     open_phase: OpenPhaseMonitor,
     /// From enable to the first settle: does the torque make the motion?
     torque_watch: crate::protection::TorqueWatch,
@@ -338,6 +341,7 @@ impl Controller {
             brake_periods: 0,
             stop_brake_assist: false,
             handover_anchor_m: 0.0,
+            speed_prev_rad_s: 0.0,
             hold_current_q_a: expected_load_current_q_a(&params),
             short_circuit_periods: 0,
             bus_voltage_v: 0.0,

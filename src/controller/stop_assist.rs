@@ -16,15 +16,36 @@
 
 use super::Controller;
 use crate::io::{PwmCommand, SensorSample};
+use crate::protection::LimitFlags;
 use crate::telemetry::Mode;
 
-/// How far the motor side may move while the motor's share ramps down
-/// before that counts as the brake slipping (about 0.5 mm of rod): well
-/// above the position noise and the brake's elastic give under a held load,
-/// far below the stop's own 3 mm error bound.
-const HANDOVER_SLIP_M: f32 = 0.5e-3;
-
 impl Controller {
+    /// A controlled stop is already lost when the motor is at its limit,
+    /// the rod runs away from the stop and, at its present acceleration,
+    /// would pass within the brake's engage time the speed where the
+    /// back-EMF and the reactance's drop at the current limit fill the
+    /// bus's voltage circle: there the braking current escapes the current
+    /// loop, the comparator trips and the brake, weaker than the load,
+    /// slides. A light rod (little mass beyond the rotor's) gets there while
+    /// the stop strays its error bound; called now, the brake closes on a
+    /// slower rod. A rotor springing back off an obstacle is too slow.
+    /// Called every position period of such a stop (the acceleration is
+    /// the speed's change since the last one, or since the stop began).
+    #[inline(never)]
+    pub(super) fn stop_outruns_bus(&mut self, x: f32) -> bool {
+        let w = self.speed_rad_s();
+        let accel = (w - core::mem::replace(&mut self.speed_prev_rad_s, w)) / self.derived.position_period_s;
+        let m = &self.params.motor;
+        let i = self.derived.current_limit_a;
+        let flux = crate::math::sqrt(m.flux_linkage_wb * m.flux_linkage_wb + m.inductance_q_h * m.inductance_q_h * i * i);
+        let bus_speed =
+            crate::foc::svpwm::linear_limit_v(self.bus_voltage_v) * self.params.limits.max_modulation / (flux * m.pole_pairs as f32);
+        (self.position_command_m - x) * w < 0.0
+            && w * accel > 0.0
+            && (w + accel * self.params.brake.engage_time_s).abs() > bus_speed
+            && self.limits.intersects(LimitFlags::CURRENT.union(LimitFlags::VOLTAGE))
+    }
+
     /// The brake closes under a controlled stop the load is winning; the
     /// loops hold on with it, the stop anchored where the rod got to.
     #[inline(never)]
@@ -57,7 +78,7 @@ impl Controller {
             let x = self.motor_position_m();
             if self.brake_periods <= engage {
                 self.handover_anchor_m = x;
-            } else if (x - self.handover_anchor_m).abs() > HANDOVER_SLIP_M {
+            } else if (x - self.handover_anchor_m).abs() > self.params.brake.handover_slip_m {
                 // The brake alone does not hold this load yet.
                 self.brake_periods = 0;
                 self.handover_anchor_m = x;

@@ -245,7 +245,10 @@ impl ControlParams {
             // (the power-up bar; 4.6 µm measured over the rig family), and
             // early: the short-circuit sink through the brake's 25 ms
             // engage time (≈ 12 mm/s at rated load) is most of the drop.
-            torque_watch_travel_m: 1.0e-5 },
+            torque_watch_travel_m: 1.0e-5,
+            // 0.5 mm: fifty times a 200 N·m/rad disc's twist at its holding
+            // torque (10 µm of rod), a sixth of the stop's 3 mm error bound.
+            handover_slip_m: 5.0e-4 },
     };
 }
 

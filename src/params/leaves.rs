@@ -187,6 +187,7 @@ leaves! {
     brake.holding_torque_n_m,
     brake.preload_time_s,
     brake.torque_watch_travel_m,
+    brake.handover_slip_m,
 }
 
 // Offsets fit the table's u16 and every leaf is 4 bytes or less (the

@@ -222,6 +222,19 @@ pub struct BrakeParams {
     /// current pushes back towards it; beyond it the torque does not make
     /// the motion (a commutation offset error): bridge off, brake closed.
     pub torque_watch_travel_m: f32,
+    /// A stop handed to the brake (`Braking` under the motor's assist)
+    /// counts a motor-side move of more than this, while the motor's share
+    /// ramps down, as the brake slipping: the motor takes its whole share
+    /// back. Above the position noise and the disc's elastic twist at its
+    /// holding torque, well below the stop's `faults.stop_following_error_m`.
+    #[serde(default = "handover_slip_default")]
+    pub handover_slip_m: f32,
+}
+
+/// Parameter records and files written before the slip was a parameter
+/// keep the value it had as a constant.
+const fn handover_slip_default() -> f32 {
+    5.0e-4
 }
 
 /// I²t winding protection: a first-order thermal model normalised to the

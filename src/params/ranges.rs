@@ -94,7 +94,8 @@ pub const fn classify(p: &str, kind: ValueKind) -> Unit {
     let protection = starts_with(p, "control.faults.")
         || starts_with(p, "control.stream.")
         || starts_with(p, "control.power_stage.")
-        || ends_with(p, "watch_travel_m");
+        || ends_with(p, "watch_travel_m")
+        || ends_with(p, "handover_slip_m");
     if starts_with(p, "control.ratings.") {
         return Unit::Rating;
     }

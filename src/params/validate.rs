@@ -176,6 +176,7 @@ const RULES: &[Rule] = &[
     non_negative!(brake.holding_torque_n_m),
     non_negative!(brake.preload_time_s),
     positive!(brake.torque_watch_travel_m),
+    positive!(brake.handover_slip_m),
     positive!(compensation.shift_max_m),
     positive!(compensation.shift_rate_max_m_s),
     positive!(thermal.continuous_current_a),
