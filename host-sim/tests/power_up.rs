@@ -282,6 +282,7 @@ fn a_hold_that_rings_after_homing_is_refused_not_ready_and_enable_still_preloads
         cl.step();
     }
     assert!(!cl.pending_command().enable && cl.plant.state().brake_engaged, "bridge off and brake closed after the refusal");
+    assert!(!cl.controller.readiness().contains(Readiness::HOMED), "a refused settle leaves the drive un-homed");
 
     cl.controller.command(Command::ClearFaults).unwrap();
     cl.controller.command(Command::Enable).unwrap();

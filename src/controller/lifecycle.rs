@@ -139,7 +139,12 @@ impl Controller {
             let dt = self.derived.position_period_s;
             match self.homing.settle(&self.params, self.position_command_m - x, self.current_reference.q, band_a, dt) {
                 SettleVerdict::Settling => {}
-                SettleVerdict::NeverSettled => self.raise(FaultSet::LIFECYCLE_TIMEOUT),
+                // A reference the hold cannot keep still is no reference:
+                // the drive goes back to un-homed, not ready on a ringing hold.
+                SettleVerdict::NeverSettled => {
+                    self.readiness.remove(Readiness::HOMED);
+                    self.raise(FaultSet::LIFECYCLE_TIMEOUT);
+                }
                 SettleVerdict::Settled => {
                     self.homing_backing_off = false;
                     self.set_mode(Mode::Running);
