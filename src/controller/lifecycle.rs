@@ -134,8 +134,7 @@ impl Controller {
     fn homing_settle_tick(&mut self) {
         if !self.move_in_progress() {
             let x = self.motor_position_m();
-            let slow_n = self.load.slow_force_n();
-            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / self.params.torque_constant_n_m_a();
+            let band_a = super::friction_band_q_a(&self.params, &self.load);
             let dt = self.derived.position_period_s;
             match self.homing.settle(&self.params, self.position_command_m - x, self.current_reference.q, band_a, dt) {
                 SettleVerdict::Settling => {}

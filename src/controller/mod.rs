@@ -533,6 +533,12 @@ pub(super) fn expected_load_current_q_a(p: &ControlParams) -> f32 {
 
 /// The q current whose torque balances `force_n` at the nut (the screw's
 /// ideal lead; friction is the caller's band).
+/// The screw's Coulomb friction under the slow load estimate, as q current:
+/// at rest friction takes up any torque inside this band, so a held load's
+/// current may wander within it without moving the rod.
+pub(super) fn friction_band_q_a(p: &ControlParams, load: &LoadEstimator) -> f32 {
+    crate::motion::speed_loop::coulomb_friction_n_m(p, load.slow_force_n()) / p.torque_constant_n_m_a()
+}
 pub(super) fn load_current_q_a(p: &ControlParams, force_n: f32) -> f32 {
     let torque = force_n * p.metres_per_rad();
     torque / p.torque_constant_n_m_a()

@@ -83,7 +83,7 @@ impl Controller {
             // loops catch it.
             let slow_n = self.load.slow_force_n();
             let load_a = super::load_current_q_a(&self.params, slow_n);
-            let band_a = crate::motion::speed_loop::coulomb_friction_n_m(&self.params, slow_n) / self.params.torque_constant_n_m_a();
+            let band_a = super::friction_band_q_a(&self.params, &self.load);
             let q = self.current_reference.q;
             let held = if (q - load_a).abs() <= band_a { q } else { load_a };
             if held.is_finite() {
